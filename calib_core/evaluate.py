@@ -1,0 +1,35 @@
+"""Hold-out evaluation: the model is held fixed, only each view's pose is refit."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from . import metrics
+from .pipeline import to_data
+from .calibration import Calibration
+from .errors import DataError
+from .init import poses_from_rays
+from .observations import Observations
+from .solve import SolveSettings, levenberg_marquardt
+
+
+def evaluate(cal: Calibration, obs: Observations) -> dict[str, Any]:
+    """Per-view and overall errors of ``cal`` on ``obs`` after a pose-only refit."""
+    if tuple(obs.image_size) != tuple(cal.image_size):
+        raise DataError(f"image_size {list(obs.image_size)} differs from the calibration's {list(cal.image_size)}")
+    data, names, _ = to_data(obs)
+    poses = poses_from_rays(cal.model, data)
+    if poses is None:
+        raise DataError("could not find a board pose for every view (too few corners the model can unproject)")
+    res = levenberg_marquardt(cal.model, poses, data, SolveSettings(max_iterations=200, fix_model=True))
+    r = res.residuals
+    views = []
+    for k, name in enumerate(names):
+        m = data.view_index == k
+        views.append({"name": name, "rmse": metrics.rmse(r[m]), "rmse_axis": metrics.rmse_axis(r[m]),
+                      "n_points": int(m.sum()), "max_error": float(np.max(np.linalg.norm(r[m], axis=1)))})
+    out = metrics.summary(r, data.image_points, obs.image_size)
+    out["max_error"] = float(np.max(np.linalg.norm(r, axis=1)))
+    out["views"] = views
+    return out

@@ -1,0 +1,186 @@
+"""Initialisation with no focal-length guess, from ordinary lenses to fisheyes.
+
+1. Zhang's closed form on board homographies, principal point at the image
+   centre and no distortion, gives one focal-length candidate (good for
+   moderate lenses).
+2. Equidistant cameras whose half-diagonal spans 30°…120° give more (good for
+   wide and fisheye lenses, where homographies of distorted corners mislead).
+3. For each candidate, every pose comes from a homography between the board
+   and the candidate's rays, and a short Kannala–Brandt refinement on a
+   subsample scores it. The best one is refined on all points.
+
+The result is a Kannala–Brandt camera (``FisheyeModel``) and poses: the
+starting point of every method.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from . import camera
+from .errors import DataError
+from .models.fisheye import FisheyeModel
+from .solve import Data, SolveSettings, levenberg_marquardt
+
+MIN_POINTS_PER_VIEW = 6
+
+
+@dataclass
+class Initial:
+    model: FisheyeModel
+    poses: np.ndarray  # (V, 6)
+    rmse: float  # per-point RMS of the refined initial model, pixels
+    focal_source: str
+
+
+def zhang_focal(data: Data, image_size: tuple[int, int]) -> tuple[float, float] | None:
+    """(fx, fy) from board homographies with the principal point at the image
+    centre and no distortion (Zhang's constraints), or None when degenerate
+    (e.g. every view fronto-parallel)."""
+    w, h = image_size
+    shift = np.array([[1.0, 0, -(w - 1) / 2], [0, 1.0, -(h - 1) / 2], [0, 0, 1.0]])
+    rows, rhs = [], []
+    for k in range(data.n_views):
+        m = data.view_index == k
+        if m.sum() < MIN_POINTS_PER_VIEW:
+            continue
+        hmat, _ = cv2.findHomography(data.object_points[m, :2], data.image_points[m], 0)
+        if hmat is None:
+            continue
+        hmat = shift @ hmat
+        hmat /= np.linalg.norm(hmat)
+        h1, h2 = hmat[:, 0], hmat[:, 1]
+        for a, b in ((h1 * h2, None), (h1 * h1, h2 * h2)):
+            row = a if b is None else a - b
+            norm = np.linalg.norm(row[:2])
+            if norm > 0:
+                rows.append(row[:2] / norm)
+                rhs.append(-row[2] / norm)
+    if len(rows) < 2:
+        return None
+    sol, *_ = np.linalg.lstsq(np.array(rows), np.array(rhs), rcond=None)
+    if np.all(sol > 0):
+        return float(1 / np.sqrt(sol[0])), float(1 / np.sqrt(sol[1]))
+    # Fall back to a square-pixel camera: one unknown 1/f².
+    a = np.array(rows).sum(axis=1)
+    s = float(a @ np.array(rhs) / (a @ a)) if a @ a > 0 else -1.0
+    if s > 0:
+        f = float(1 / np.sqrt(s))
+        return f, f
+    return None
+
+
+def poses_from_rays(model: FisheyeModel, data: Data) -> np.ndarray | None:
+    """A pose per view from the homography between the board plane and the
+    model's rays of the observed corners; None if some view cannot be posed."""
+    xn = model.normalised_of_pixel(data.image_points, tol=1e-6)
+    rays = camera.ray_of(xn, model.base)
+    poses = np.zeros((data.n_views, 6))
+    for k in range(data.n_views):
+        m = (data.view_index == k) & np.all(np.isfinite(rays), axis=1) & (rays[:, 2] > 0.2)
+        if m.sum() < 4:
+            return None
+        proj = rays[m, :2] / rays[m, 2:]
+        # Board coordinates about the observed centroid: better conditioned,
+        # and the centroid must land in front of the camera.
+        centroid = data.object_points[m].mean(axis=0)
+        hmat, _ = cv2.findHomography(data.object_points[m, :2] - centroid[:2], proj, 0)
+        if hmat is None:
+            return None
+        lam = 2.0 / (np.linalg.norm(hmat[:, 0]) + np.linalg.norm(hmat[:, 1]))
+        r1, r2, t = lam * hmat[:, 0], lam * hmat[:, 1], lam * hmat[:, 2]
+        if t[2] < 0:
+            r1, r2, t = -r1, -r2, -t
+        u, _, vt = np.linalg.svd(np.column_stack([r1, r2, np.cross(r1, r2)]))
+        rot = u @ vt
+        if np.linalg.det(rot) < 0:
+            rot = u @ np.diag([1, 1, -1]) @ vt
+        poses[k, :3] = cv2.Rodrigues(rot)[0].ravel()
+        poses[k, 3:] = t - rot @ centroid
+    return poses
+
+
+def _subsample(data: Data, per_view: int, rng: np.random.Generator) -> Data:
+    keep = []
+    for k in range(data.n_views):
+        idx = np.flatnonzero(data.view_index == k)
+        keep.append(idx if len(idx) <= per_view else np.sort(rng.choice(idx, per_view, replace=False)))
+    keep = np.concatenate(keep)
+    return Data(data.object_points[keep], data.image_points[keep], data.view_index[keep], data.n_views)
+
+
+def check_planar(data: Data) -> None:
+    if np.any(np.abs(data.object_points[:, 2]) > 1e-9 * max(1.0, np.abs(data.object_points).max())):
+        raise DataError("object_points: the initialisation needs a planar board (Z = 0 for every point)")
+
+
+# Kannala–Brandt coefficients of the pinhole projection: tan θ = θ (1 + θ²/3 + 2θ⁴/15 + 17θ⁶/315 + …).
+PINHOLE_AS_KB = np.array([1 / 3, 2 / 15, 17 / 315, 62 / 2835])
+
+
+def _candidates(data: Data, image_size) -> list[tuple[str, float, float, np.ndarray]]:
+    """(label, fx, fy, KB coefficients) starting points: pinhole and equidistant
+    cameras over a range of fields of view, and Zhang's estimate."""
+    w, h = image_size
+    half_diag = 0.5 * np.hypot(w, h)
+    out = []
+    zf = zhang_focal(data, image_size)
+    if zf is not None and all(np.isfinite(zf)):
+        out.append(("zhang homographies, pinhole", *zf, PINHOLE_AS_KB))
+    for deg in (30, 50, 70):
+        f = half_diag / np.tan(np.radians(deg))
+        out.append((f"pinhole, half-diagonal {deg} deg", f, f, PINHOLE_AS_KB))
+    for deg in (60, 90, 120):
+        f = half_diag / np.radians(deg)
+        out.append((f"equidistant, half-diagonal {deg} deg", f, f, np.zeros(4)))
+    return out
+
+
+def initialise(data: Data, image_size: tuple[int, int], n_coefficients: int = 4) -> Initial:
+    """A Kannala–Brandt camera and a pose per view, with no focal guess.
+
+    Each candidate is scored after fitting only its focal lengths and the poses
+    (its shape held): a small, well-posed problem. The best is then refined with
+    every parameter free, first on a subsample and then on all points."""
+    check_planar(data)
+    counts = np.bincount(data.view_index, minlength=data.n_views)
+    if np.any(counts < MIN_POINTS_PER_VIEW):
+        bad = int(np.argmin(counts))
+        raise DataError(f"view {bad} has {counts[bad]} corners; each view needs at least {MIN_POINTS_PER_VIEW}")
+    w, h = image_size
+    centre = ((w - 1) / 2, (h - 1) / 2)
+    sample = _subsample(data, 40, np.random.default_rng(0))
+    focal_only = np.zeros(4 + n_coefficients, dtype=bool)
+    focal_only[:2] = True
+    quick = SolveSettings(max_iterations=30, ftol=1e-4, free_params=focal_only)
+    best = None
+    for source, fx, fy, coeffs in _candidates(data, image_size):
+        k = np.zeros(n_coefficients)
+        k[: min(4, n_coefficients)] = coeffs[: min(4, n_coefficients)]
+        model = FisheyeModel([fx, fy, *centre, 0.0], k)
+        poses = poses_from_rays(model, sample)
+        if poses is None:
+            continue
+        try:
+            res = levenberg_marquardt(model, poses, sample, quick)
+        except FloatingPointError:
+            continue
+        rmse = float(np.sqrt(np.mean(np.sum(res.residuals**2, axis=1))))
+        if np.isfinite(rmse) and np.all(res.model.intrinsics[:2] > 0) and (best is None or rmse < best[0]):
+            best = (rmse, source, res.model, res.poses)
+    if best is None:
+        raise DataError(
+            "could not initialise the camera: no focal length explains the board views. "
+            "Check the board size (inner corners) and that the views are not all fronto-parallel."
+        )
+    _, source, model, poses = best
+    res = levenberg_marquardt(model, poses, sample, SolveSettings(max_iterations=100, ftol=1e-6))
+    model = res.model
+    poses = poses_from_rays(model, data)
+    if poses is None:
+        raise DataError("could not initialise a pose for every view; remove views with very few corners")
+    res = levenberg_marquardt(model, poses, data, SolveSettings(max_iterations=100))
+    rmse = float(np.sqrt(np.mean(np.sum(res.residuals**2, axis=1))))
+    return Initial(res.model, res.poses, rmse, source)

@@ -1,0 +1,39 @@
+"""What every method returns, and how settings are read from keyword arguments."""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from ..errors import SettingsError
+from ..solve import SolveResult
+
+Progress = Callable[[str, float], None]
+
+
+def no_progress(stage: str, fraction: float) -> None:
+    pass
+
+
+@dataclass
+class Fit:
+    """A fitted model and poses, the points it could not use, and what to record."""
+
+    result: SolveResult
+    excluded: np.ndarray  # (N,) bool: points the model cannot represent (not fitted)
+    excluded_reason: str = ""
+    settings: dict[str, Any] = field(default_factory=dict)
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+
+
+def settings_from(cls, values: dict[str, Any]):
+    """Build a settings dataclass from keyword arguments, naming unknown keys."""
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(values) - names)
+    if unknown:
+        raise SettingsError(f"unknown setting(s) {unknown}; known: {sorted(names)}")
+    obj = cls(**values)
+    obj.validate()
+    return obj

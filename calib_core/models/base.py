@@ -1,0 +1,131 @@
+"""The one interface every camera model shares.
+
+A model maps normalised coordinates of its base projection (``camera.py``)
+to pixels: ``pixel_of(xn)``. The solver, the metrics, rectification and the
+viewer use only this interface, so a new model is one new file.
+
+Parameter Jacobians are reported sparsely, per residual row: ``cols`` (N, 2, c)
+are parameter indices and ``vals`` (N, 2, c) the derivatives, row 0 for u and
+row 1 for v. Entries may repeat a column with value 0 (padding).
+"""
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from .. import camera
+
+
+class CameraModel:
+    kind: ClassVar[str]  # the distortion.type it writes
+    base: str = "pinhole"
+    intrinsics: np.ndarray  # [fx, fy, cx, cy, skew]
+
+    # ---- what each model provides -------------------------------------------
+    @property
+    def n_params(self) -> int:
+        raise NotImplementedError
+
+    def params(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def with_params(self, x: np.ndarray) -> "CameraModel":
+        raise NotImplementedError
+
+    def pixel_of(self, xn: np.ndarray, jacobian: bool = False):
+        """Pixels (N, 2) of normalised coordinates (N, 2); with ``jacobian`` also
+        ∂uv/∂xn (N, 2, 2) and the parameter Jacobian ``cols, vals``."""
+        raise NotImplementedError
+
+    def prior(self):
+        """Extra residual rows linear in the parameters, ``(r, J)``, or None."""
+        return None
+
+    def distortion_json(self) -> dict[str, Any]:
+        raise NotImplementedError
+
+    # ---- shared ---------------------------------------------------------------
+    def project(self, pc: np.ndarray, jacobian: bool = False):
+        """Pixels (N, 2) of camera-frame points (N, 3); with ``jacobian`` also
+        ∂uv/∂Pc (N, 2, 3) and the parameter Jacobian ``cols, vals``."""
+        if not jacobian:
+            return self.pixel_of(camera.normalise(pc, self.base))
+        xn, d_xn = camera.normalise(pc, self.base, jacobian=True)
+        uv, d_uv, cols, vals = self.pixel_of(xn, jacobian=True)
+        return uv, np.einsum("nij,njk->nik", d_uv, d_xn), cols, vals
+
+    def ideal_pixel(self, xn: np.ndarray) -> np.ndarray:
+        """``(xn, yn)`` into pixels with the intrinsics alone (no distortion)."""
+        fx, fy, cx, cy, s = self.intrinsics
+        return np.stack([fx * xn[:, 0] + s * xn[:, 1] + cx, fy * xn[:, 1] + cy], axis=-1)
+
+    def normalised_of_ideal(self, uv: np.ndarray) -> np.ndarray:
+        fx, fy, cx, cy, s = self.intrinsics
+        y = (uv[:, 1] - cy) / fy
+        return np.stack([(uv[:, 0] - cx - s * y) / fx, y], axis=-1)
+
+    def distort(self, ideal_uv: np.ndarray) -> np.ndarray:
+        """Ideal pixels (N, 2) (the intrinsics applied to ``xn``) → observed pixels."""
+        return self.pixel_of(self.normalised_of_ideal(np.asarray(ideal_uv, dtype=np.float64).reshape(-1, 2)))
+
+    def normalised_of_pixel(self, uv: np.ndarray, tol: float = 1e-9, max_iterations: int = 50) -> np.ndarray:
+        """Invert ``pixel_of`` by damped Newton, vectorised over points (N, 2) → (N, 2).
+
+        Converges to ``tol`` pixels wherever the model is locally invertible;
+        points that do not converge come back as NaN.
+        """
+        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+        xn = self.normalised_of_ideal(uv)
+        err = self._pixel_error(xn, uv)
+        active = np.ones(len(uv), dtype=bool)
+        for _ in range(max_iterations):
+            active &= np.linalg.norm(err, axis=-1) > tol
+            if not active.any():
+                break
+            idx = np.flatnonzero(active)
+            p, d_uv, _, _ = self.pixel_of(xn[idx], jacobian=True)
+            step = np.linalg.solve(d_uv, -(p - uv[idx])[..., None])[..., 0]
+            # Backtrack per point so that the pixel error always shrinks.
+            t = np.ones(len(idx))
+            e0 = np.linalg.norm(err[idx], axis=-1)
+            for _ in range(20):
+                trial = xn[idx] + t[:, None] * step
+                e1 = self._pixel_error(trial, uv[idx])
+                bad = ~(np.linalg.norm(e1, axis=-1) < e0)
+                if not bad.any():
+                    break
+                t[bad] *= 0.5
+            xn[idx], err[idx] = trial, e1
+        xn[np.linalg.norm(err, axis=-1) > max(tol * 100, 1e-6)] = np.nan
+        return xn
+
+    def _pixel_error(self, xn, uv):
+        with np.errstate(all="ignore"):
+            e = self.pixel_of(xn) - uv
+        return np.where(np.isfinite(e), e, np.inf)
+
+    def undistort_points(self, uv: np.ndarray) -> np.ndarray:
+        """Observed pixels (N, 2) → ideal pixels (N, 2): the inverse of ``distort``."""
+        return self.ideal_pixel(self.normalised_of_pixel(uv))
+
+    def rays(self, uv: np.ndarray) -> np.ndarray:
+        """Unit rays (N, 3) in the camera frame of observed pixels (N, 2)."""
+        return camera.ray_of(self.normalised_of_pixel(uv), self.base)
+
+    def intrinsics_json(self) -> dict[str, float]:
+        fx, fy, cx, cy, s = (float(v) for v in self.intrinsics)
+        return {"fx": fx, "fy": fy, "cx": cx, "cy": cy, "skew": s}
+
+
+def intrinsics_jacobian(xn: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """∂uv/∂[fx, fy, cx, cy, skew] (N, 2, 5) for ``uv = m(K xn)`` with ∂m = ``a`` (N, 2, 2)."""
+    n = len(xn)
+    # ∂(u, v)_ideal / ∂[fx, fy, cx, cy, s]
+    dk = np.zeros((n, 2, 5))
+    dk[:, 0, 0] = xn[:, 0]
+    dk[:, 0, 2] = 1.0
+    dk[:, 0, 4] = xn[:, 1]
+    dk[:, 1, 1] = xn[:, 1]
+    dk[:, 1, 3] = 1.0
+    return np.einsum("nij,njk->nik", a, dk)

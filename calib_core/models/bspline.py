@@ -1,0 +1,142 @@
+"""The paper's model: a pinhole (or other base) camera whose ideal pixels are
+moved by a bicubic B-spline field, ``uv = K xn + Δ(K xn)`` (``formats.md``).
+
+Parameters: ``[fx, fy, cx, cy, skew, control_x (flat), control_y (flat)]``.
+
+Gauge. A cubic spline reproduces any affine function of (u, v), so the
+intrinsics (and a roll of every pose) can be traded against the field's affine
+part. We fix this deliberately: the field's value and gradient vanish at a
+fixed ideal pixel ``c0`` (by default the initial principal point). Then
+fx, fy, cx, cy, skew are the camera's local pinhole at the optical axis, as in
+OpenCV's models, and the six affine degrees of freedom are pinned by six
+constraint rows. The remaining near-degeneracy (a common tilt of every pose
+against a projective change of the field) is governed by the regularisers.
+
+Regularisers, as prior rows of the least-squares cost
+``Σ‖r‖² + λ_reg ‖P‖² + λ_smooth ‖D P‖²``: λ weighs one squared control value
+(pixels) against one squared residual component (pixels). It acts like a
+prior, so its influence shrinks as the data grows, as a prior's should; the
+numbers mean the same at every data-set size.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..bspline import BSplineField
+from ..errors import FormatError
+from .base import CameraModel, intrinsics_jacobian
+
+GAUGE_WEIGHT = 1e4  # constraint rows are multiplied by this: violations ~1e-8 px
+
+
+class BSplineModel(CameraModel):
+    kind = "bspline"
+
+    def __init__(
+        self,
+        intrinsics,
+        field: BSplineField,
+        base: str = "pinhole",
+        lambda_reg: float = 1e-3,
+        lambda_smooth: float = 1e-3,
+        gauge_point: tuple[float, float] | None = None,
+    ):
+        self.intrinsics = np.asarray(intrinsics, dtype=np.float64)
+        self.field = field
+        self.base = base
+        self.lambda_reg = float(lambda_reg)
+        self.lambda_smooth = float(lambda_smooth)
+        self.gauge_point = None if gauge_point is None else (float(gauge_point[0]), float(gauge_point[1]))
+        self._prior_matrix = None
+
+    @property
+    def n_params(self) -> int:
+        return 5 + 2 * self.field.n_controls
+
+    def params(self) -> np.ndarray:
+        c = self.field.control
+        return np.concatenate([self.intrinsics, c[..., 0].ravel(), c[..., 1].ravel()])
+
+    def with_params(self, x: np.ndarray) -> "BSplineModel":
+        nc = self.field.n_controls
+        control = np.stack([x[5 : 5 + nc], x[5 + nc :]], axis=-1)
+        new = object.__new__(BSplineModel)
+        new.__dict__.update(self.__dict__)
+        new.intrinsics = np.asarray(x[:5], dtype=np.float64).copy()
+        new.field = self.field.with_control(control)
+        return new
+
+    def pixel_of(self, xn: np.ndarray, jacobian: bool = False):
+        ideal = self.ideal_pixel(xn)
+        if not jacobian:
+            return ideal + self.field(ideal)
+        offset, grad, design = self.field.evaluate(ideal)
+        a = grad + np.eye(2)  # ∂uv/∂ideal
+        fx, fy, _, _, s = self.intrinsics
+        d_xn = a @ np.array([[fx, s], [0.0, fy]])
+        n, nc = len(xn), self.field.n_controls
+        cols = np.empty((n, 2, 21), dtype=np.int64)
+        vals = np.empty((n, 2, 21))
+        cols[:, :, :5] = np.arange(5)
+        vals[:, :, :5] = intrinsics_jacobian(xn, a)
+        cols[:, 0, 5:] = 5 + design.cols
+        cols[:, 1, 5:] = 5 + nc + design.cols
+        vals[:, 0, 5:] = design.w
+        vals[:, 1, 5:] = design.w
+        return ideal + offset, d_xn, cols, vals
+
+    # ---- prior rows: regularisers and gauge ----------------------------------
+    def prior(self):
+        if self._prior_matrix is None:
+            self._prior_matrix = self._build_prior()
+        m = self._prior_matrix
+        return m @ self.params(), m
+
+    def _build_prior(self) -> sp.csr_matrix:
+        nc = self.field.n_controls
+        blocks = []
+        if self.lambda_reg > 0:
+            blocks.append(np.sqrt(self.lambda_reg) * sp.identity(nc))
+        if self.lambda_smooth > 0:
+            blocks.append(np.sqrt(self.lambda_smooth) * self.field.bending())
+        per_component = sp.vstack(blocks) if blocks else sp.csr_matrix((0, nc))
+        rows = [sp.block_diag([per_component, per_component])]
+        if self.gauge_point is not None:
+            rows.append(GAUGE_WEIGHT * self.gauge_rows())
+        controls = sp.vstack(rows)
+        return sp.hstack([sp.csr_matrix((controls.shape[0], 5)), controls]).tocsr()
+
+    def gauge_rows(self) -> sp.csr_matrix:
+        """(6, 2 n_controls): Δ, and ∂Δ/∂u, ∂Δ/∂v scaled to pixels over the domain, at c0."""
+        nc = self.field.n_controls
+        d = self.field.design(np.array([self.gauge_point]), derivative=True)
+        u0, u1, v0, v1 = self.field.domain
+        scale = 0.5 * ((u1 - u0) + (v1 - v0))
+        rows = []
+        for w in (d.w[0], scale * d.w_u[0], scale * d.w_v[0]):
+            row = sp.csr_matrix((w, d.cols[0], [0, 16]), shape=(1, nc))
+            rows += [sp.hstack([row, sp.csr_matrix((1, nc))]), sp.hstack([sp.csr_matrix((1, nc)), row])]
+        return sp.vstack(rows).tocsr()
+
+    # ---- JSON ------------------------------------------------------------------
+    def distortion_json(self) -> dict[str, Any]:
+        return self.field.to_json()
+
+    def settings_json(self) -> dict[str, Any]:
+        return {
+            "lambda_reg": self.lambda_reg,
+            "lambda_smooth": self.lambda_smooth,
+            "gauge": {
+                "type": "field value and gradient zero at a fixed ideal pixel",
+                "point": list(self.gauge_point) if self.gauge_point else None,
+            },
+        }
+
+    @classmethod
+    def from_json(cls, intrinsics, distortion: dict[str, Any], base: str) -> "BSplineModel":
+        if distortion.get("type") != "bspline":
+            raise FormatError("distortion.type: expected 'bspline'")
+        return cls(intrinsics, BSplineField.from_json(distortion), base=base)

@@ -1,0 +1,25 @@
+"""Shared fixtures: synthetic sets are cached per session (they are deterministic)."""
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+import pytest
+
+from calib_core import synth
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED_DATA = ROOT.parent / "shared" / "data"
+
+
+@functools.lru_cache(maxsize=None)
+def synthetic(kind: str, sigma: float = 0.3, seed: int = 0) -> synth.SynthSet:
+    return synth.generate(kind, sigma, seed)
+
+
+def shared_data(name: str) -> Path:
+    """A folder of ../shared/data, or skip the test saying why."""
+    path = SHARED_DATA / name
+    if not path.is_dir():
+        pytest.skip(f"real image set {name!r} not found at {path} (the shared data folder sits beside the checkout)")
+    return path

@@ -16,9 +16,10 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(VENV)/bin/freecal demo
+	$(VENV)/bin/freecal serve
 
 test: $(STAMP)
+	@bash scripts/ensure-system-packages.sh
 	$(PY) -m pytest
 
 bench: $(STAMP)

@@ -1,0 +1,58 @@
+"""The app factory: ``create_app(settings)`` → FastAPI app with routers, error
+handlers, the body-size limit, and a lifespan that opens the store and the
+queue, re-sends queued jobs and runs the periodic recovery of stale ones.
+
+The app never runs jobs itself: workers do (``freecal serve`` starts one
+beside it, ``freecal worker`` starts more). Static pages (frontend/) and the
+3D viewer can be mounted on this app later without touching /api.
+"""
+from __future__ import annotations
+
+import logging
+from contextlib import asynccontextmanager
+from typing import AsyncIterator
+
+from fastapi import FastAPI
+
+from ..queue.recovery import Periodic, recover_stale, requeue_pending
+from ..queue.tasks import build_queue
+from . import errors
+from .context import Context
+from .limits import BodyLimit
+from .routers import health, jobs, sets
+from .settings import Settings
+
+log = logging.getLogger("freecal.api")
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    settings = settings or Settings.from_env()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        ctx = Context.open(settings)
+        queue = build_queue(ctx)
+        app.state.ctx, app.state.queue = ctx, queue
+        n = requeue_pending(ctx, queue)
+        if n:
+            log.info("re-sent %d queued job(s) to the queue", n)
+        recover_stale(ctx, queue)
+        reaper = Periodic(settings.heartbeat_seconds, lambda: recover_stale(ctx, queue), "recovery")
+        reaper.start()
+        try:
+            yield
+        finally:
+            reaper.stop()
+
+    app = FastAPI(
+        title="freecal",
+        version=health.VERSION,
+        description="Camera calibration as a service: upload image sets, run calibration jobs on a queue, "
+                    "download results. Errors answer 4xx with a message saying what to do.",
+        lifespan=lifespan,
+    )
+    errors.install(app)
+    app.add_middleware(BodyLimit, max_bytes=settings.max_upload_bytes + 1024 * 1024)  # + multipart overhead
+    for module in (sets, jobs, health):
+        app.include_router(module.router)
+    return app

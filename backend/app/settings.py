@@ -1,0 +1,68 @@
+"""Service settings from ``FREECAL_*`` environment variables, with safe defaults.
+
+A plain dataclass (no pydantic-settings dependency): the API process, the
+worker processes and the test fixtures all build it the same way, from the
+environment, so one exported variable configures every part.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+from typing import Any
+
+MB = 1024 * 1024
+
+
+@dataclass(frozen=True)
+class Settings:
+    data_dir: Path = Path("freecal-data")
+    # "sqlite" (embedded, a file in data_dir) or "redis" (several machines/containers)
+    queue: str = "sqlite"
+    redis_url: str = "redis://127.0.0.1:6379/0"
+    # Upload limits: a client can cause these, so they answer 413/422, never 500.
+    max_upload_bytes: int = 1024 * MB
+    max_files: int = 500
+    max_image_pixels: int = 50_000_000
+    max_observations_bytes: int = 64 * MB
+    # Leases: a running job's worker writes a heartbeat every heartbeat_seconds;
+    # one silent for lease_seconds is taken to be dead and is retried (up to
+    # max_attempts runs in all) or failed with the reason.
+    heartbeat_seconds: float = 5.0
+    lease_seconds: float = 60.0
+    max_attempts: int = 2
+    # SqliteHuey polls; this caps the wait between polls of an idle queue.
+    poll_seconds: float = 1.0
+    # Worker threads per worker process (CPU-bound jobs scale better by processes).
+    worker_threads: int = 1
+
+    @property
+    def db_path(self) -> Path:
+        return self.data_dir / "freecal.db"
+
+    @property
+    def queue_path(self) -> Path:
+        return self.data_dir / "queue.db"
+
+    @classmethod
+    def from_env(cls, env: dict[str, str] | None = None, **overrides: Any) -> "Settings":
+        """Read ``FREECAL_<FIELD>`` (e.g. ``FREECAL_DATA_DIR``); ``overrides`` win."""
+        env = os.environ if env is None else env
+        values: dict[str, Any] = {}
+        for f in fields(cls):
+            raw = env.get("FREECAL_" + f.name.upper())
+            if raw is None or raw == "":
+                continue
+            kind = type(getattr(cls, f.name))
+            try:
+                values[f.name] = Path(raw) if kind is type(Path()) or f.name == "data_dir" else kind(raw)
+            except ValueError:
+                raise SystemExit(f"FREECAL_{f.name.upper()}={raw!r}: expected {kind.__name__}") from None
+        settings = replace(cls(**values), **{k: v for k, v in overrides.items() if v is not None})
+        if settings.queue not in ("sqlite", "redis"):
+            raise SystemExit(f"FREECAL_QUEUE={settings.queue!r}: expected 'sqlite' or 'redis'")
+        return replace(settings, data_dir=Path(settings.data_dir).resolve())
+
+    def to_env(self) -> dict[str, str]:
+        """The variables that rebuild these settings in a child process."""
+        return {"FREECAL_" + f.name.upper(): str(getattr(self, f.name)) for f in fields(self)}

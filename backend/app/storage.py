@@ -1,0 +1,116 @@
+"""Files under the data directory: uploads and artefacts, each written atomically.
+
+Layout::
+
+    DATA/freecal.db                 metadata (db.py)
+    DATA/queue.db                   the embedded queue (SqliteHuey)
+    DATA/sets/ID/images/NAME        uploaded images
+    DATA/sets/ID/observations.json  corners (detected, or uploaded)
+    DATA/jobs/ID/input.json         observations given inline with the job
+    DATA/jobs/ID/NAME               results (calibration.json, residuals, ...)
+
+A file appears complete or not at all (written to a temp name in the same
+directory, fsynced, then renamed), so a crash never leaves half a result.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any, BinaryIO
+
+CHUNK = 1024 * 1024
+_SAFE = re.compile(r"[^A-Za-z0-9._-]+")
+
+
+class TooLarge(Exception):
+    """A stream went past its byte limit."""
+
+
+def safe_name(name: str) -> str:
+    """A file name that cannot escape its folder (no separators, no leading dots)."""
+    base = _SAFE.sub("_", name.replace("\\", "/").split("/")[-1]).lstrip(".")
+    return base[:200] or "file"
+
+
+class Storage:
+    def __init__(self, root: Path):
+        self.root = Path(root)
+        for sub in ("sets", "jobs", "tmp"):
+            (self.root / sub).mkdir(parents=True, exist_ok=True)
+
+    def set_dir(self, set_id: str) -> Path:
+        return self.root / "sets" / set_id
+
+    def images_dir(self, set_id: str) -> Path:
+        return self.set_dir(set_id) / "images"
+
+    def observations_path(self, set_id: str) -> Path:
+        return self.set_dir(set_id) / "observations.json"
+
+    def job_dir(self, job_id: str) -> Path:
+        return self.root / "jobs" / job_id
+
+    def tmp_dir(self) -> Path:
+        return self.root / "tmp"
+
+    def remove_set(self, set_id: str) -> None:
+        shutil.rmtree(self.set_dir(set_id), ignore_errors=True)
+
+    def remove_job(self, job_id: str) -> None:
+        shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
+
+
+def write_bytes(path: Path, data: bytes) -> None:
+    with _atomic(path) as f:
+        f.write(data)
+
+
+def write_text(path: Path, text: str) -> None:
+    write_bytes(path, text.encode("utf-8"))
+
+
+def write_json(path: Path, doc: Any, indent: int | None = None) -> None:
+    write_bytes(path, json.dumps(doc, indent=indent, allow_nan=False, separators=None if indent else (",", ":"))
+                .encode("utf-8"))
+
+
+def copy_stream(src: BinaryIO, path: Path, limit: int) -> int:
+    """Copy a stream to ``path`` atomically; raises TooLarge past ``limit`` bytes."""
+    n = 0
+    with _atomic(path) as f:
+        while chunk := src.read(CHUNK):
+            n += len(chunk)
+            if n > limit:
+                raise TooLarge(path.name)
+            f.write(chunk)
+    return n
+
+
+class _atomic:
+    """Context manager: a temp file beside ``path`` that replaces it on success."""
+
+    def __init__(self, path: Path):
+        self.path = Path(path)
+
+    def __enter__(self) -> BinaryIO:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd, self.tmp = tempfile.mkstemp(dir=self.path.parent, prefix=".tmp-")
+        self.f = os.fdopen(fd, "wb")
+        return self.f
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        try:
+            if exc_type is None:
+                self.f.flush()
+                os.fsync(self.f.fileno())
+            self.f.close()
+            if exc_type is None:
+                os.chmod(self.tmp, 0o644)  # readable by other containers sharing the volume
+                os.replace(self.tmp, self.path)
+        finally:
+            if os.path.exists(self.tmp):
+                os.unlink(self.tmp)

@@ -1,0 +1,125 @@
+"""Turn a multipart upload into a set's files: many images, one zip of images,
+or one observations JSON (corners already detected). Every limit a client can
+hit answers 4xx naming the file and the limit."""
+from __future__ import annotations
+
+import json
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import BinaryIO
+
+from calib_core import Observations
+
+from . import storage
+from .errors import ApiError
+from .image_header import IMAGE_SUFFIXES, image_size
+from .settings import Settings
+
+
+@dataclass
+class Upload:
+    name: str
+    stream: BinaryIO
+
+
+@dataclass
+class Received:
+    kind: str                       # "images" | "observations"
+    names: list[str]                # stored image names, in upload order
+    observations: Observations | None = None
+
+
+def receive(uploads: list[Upload], images_dir: Path, settings: Settings) -> Received:
+    if not uploads:
+        raise ApiError(422, "no files: send one or more images, one zip of images, or one observations JSON "
+                            "in the multipart field 'files'")
+    if len(uploads) == 1 and uploads[0].name.lower().endswith(".json"):
+        return Received("observations", [], _observations(uploads[0], settings))
+    if len(uploads) == 1 and uploads[0].name.lower().endswith(".zip"):
+        return Received("images", _unzip(uploads[0], images_dir, settings))
+    if len(uploads) > settings.max_files:
+        raise ApiError(413, f"{len(uploads)} files is over the limit of {settings.max_files} per set")
+    budget = settings.max_upload_bytes
+    names: list[str] = []
+    for up in uploads:
+        name = _image_name(up.name, names)
+        try:
+            budget -= storage.copy_stream(up.stream, images_dir / name, budget)
+        except storage.TooLarge:
+            raise ApiError(413, f"the upload is over the limit of {settings.max_upload_bytes} bytes "
+                                f"(reached at {up.name!r}): send fewer or smaller images") from None
+        _check_pixels(images_dir / name, up.name, settings)
+        names.append(name)
+    return Received("images", names)
+
+
+def _image_name(original: str, taken: list[str]) -> str:
+    if not original.lower().endswith(IMAGE_SUFFIXES):
+        raise ApiError(415, f"{original!r} is not an image this service reads "
+                            f"({', '.join(IMAGE_SUFFIXES)}), a .zip of them, or one observations .json")
+    name = storage.safe_name(original)
+    stem, dot, ext = name.rpartition(".")
+    k = 1
+    while name in taken:  # the same base name from two folders of a zip
+        k += 1
+        name = f"{stem}_{k}{dot}{ext}"
+    return name
+
+
+def _check_pixels(path: Path, original: str, settings: Settings) -> None:
+    size = image_size(path)
+    if size is not None and size[0] * size[1] > settings.max_image_pixels:
+        raise ApiError(413, f"{original!r} has {size[0]}x{size[1]} pixels, over the limit of "
+                            f"{settings.max_image_pixels} pixels per image: downscale it")
+
+
+def _unzip(up: Upload, images_dir: Path, settings: Settings) -> list[str]:
+    tmp = settings.data_dir / "tmp" / f"upload-{images_dir.parent.name}.zip"
+    try:
+        storage.copy_stream(up.stream, tmp, settings.max_upload_bytes)
+    except storage.TooLarge:
+        raise ApiError(413, f"the zip is over the limit of {settings.max_upload_bytes} bytes") from None
+    try:
+        with zipfile.ZipFile(tmp) as zf:
+            members = [m for m in zf.infolist() if not m.is_dir() and not _hidden(m.filename)
+                       and m.filename.lower().endswith(IMAGE_SUFFIXES)]
+            if not members:
+                raise ApiError(422, f"{up.name!r} holds no images ({', '.join(IMAGE_SUFFIXES)})")
+            if len(members) > settings.max_files:
+                raise ApiError(413, f"{up.name!r} holds {len(members)} images, over the limit of "
+                                    f"{settings.max_files} per set")
+            # declared sizes first (cheap), then actual bytes while extracting (a zip can lie)
+            if sum(m.file_size for m in members) > settings.max_upload_bytes:
+                raise ApiError(413, f"{up.name!r} unpacks to more than {settings.max_upload_bytes} bytes")
+            budget, names = settings.max_upload_bytes, []
+            for m in members:
+                name = _image_name(m.filename, names)
+                with zf.open(m) as src:
+                    try:
+                        budget -= storage.copy_stream(src, images_dir / name, budget)
+                    except storage.TooLarge:
+                        raise ApiError(413, f"{up.name!r} unpacks to more than {settings.max_upload_bytes} "
+                                            "bytes") from None
+                _check_pixels(images_dir / name, m.filename, settings)
+                names.append(name)
+            return names
+    except (zipfile.BadZipFile, EOFError):
+        raise ApiError(422, f"{up.name!r} is not a readable zip archive") from None
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def _hidden(path: str) -> bool:
+    return any(part.startswith(".") or part == "__MACOSX" for part in path.split("/"))
+
+
+def _observations(up: Upload, settings: Settings) -> Observations:
+    raw = up.stream.read(settings.max_observations_bytes + 1)
+    if len(raw) > settings.max_observations_bytes:
+        raise ApiError(413, f"{up.name!r} is over the limit of {settings.max_observations_bytes} bytes")
+    try:
+        doc = json.loads(raw)
+    except (ValueError, UnicodeDecodeError):
+        raise ApiError(422, f"{up.name!r} is not valid JSON; expected a freecal.observations/1 document") from None
+    return Observations.from_json(doc)  # FormatError → 422 naming the field

@@ -1,0 +1,49 @@
+"""freecal serve [--host 127.0.0.1] [--port 8000] [--data-dir DIR] [--workers 1]
+
+The API and its workers on one machine, nothing else to install: the workers
+are child processes (``freecal worker``) on the embedded SQLite queue, so a
+long calibration never slows the API (no shared GIL) and a crashed job never
+takes the API down. They stop with the server (and on their own if it dies).
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+from .worker import add_queue_options, settings_of
+
+
+def register(sub) -> None:
+    p = sub.add_parser("serve", help="start the API (and workers) on this machine",
+                       description="Start the HTTP API (OpenAPI docs at /docs) and embedded workers.")
+    p.add_argument("--host", default="127.0.0.1", help="interface to bind (default loopback only)")
+    p.add_argument("--port", type=int, default=8000)
+    add_queue_options(p)
+    p.add_argument("--workers", type=int, default=1,
+                   help="worker processes to start beside the API (0: run them elsewhere with `freecal worker`)")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    import uvicorn
+
+    from ..app.main import create_app
+
+    settings = settings_of(args)
+    env = {**os.environ, **settings.to_env()}
+    children = [subprocess.Popen([sys.executable, "-m", "backend.cli", "worker", "--parent-pid", str(os.getpid())],
+                                 env=env) for _ in range(max(0, args.workers))]
+    print(f"freecal: API on http://{args.host}:{args.port} (docs at /docs), {len(children)} worker(s), "
+          f"data in {settings.data_dir}", file=sys.stderr, flush=True)
+    try:
+        uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level="warning")
+    finally:
+        for child in children:
+            child.terminate()
+        for child in children:
+            try:
+                child.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                child.kill()
+    return 0

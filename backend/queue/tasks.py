@@ -1,0 +1,30 @@
+"""The one huey task: run job ``job_id`` (its kind, inputs and settings are in the database)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from huey import Huey
+
+from ..app.context import Context
+from .instance import build_huey
+
+
+@dataclass
+class Queue:
+    huey: Huey
+    _run: object  # huey TaskWrapper
+
+    def enqueue(self, job_id: str) -> None:
+        self._run(job_id)
+
+
+def build_queue(ctx: Context) -> Queue:
+    huey = build_huey(ctx.settings)
+
+    @huey.task(name="freecal.run")
+    def run(job_id: str) -> None:
+        from .execute import execute  # calib_core loads only where jobs run
+
+        execute(ctx, job_id)
+
+    return Queue(huey, run)

@@ -1,0 +1,50 @@
+"""The worker entry point: a huey consumer on the configured queue, plus its
+heartbeat in the worker registry and the periodic recovery of stale jobs."""
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import socket
+import time
+
+from ..app.context import Context
+from ..app.repository import workers
+from ..app.settings import Settings
+from .lease import WORKER_ID
+from .recovery import Periodic, recover_stale
+from .tasks import build_queue
+
+log = logging.getLogger("freecal.worker")
+
+
+def run_worker(settings: Settings, threads: int | None = None, parent_pid: int | None = None) -> int:
+    """Consume jobs until SIGINT (finish running jobs) or SIGTERM (stop now)."""
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    logging.getLogger("huey").setLevel(logging.WARNING)
+    ctx = Context.open(settings)
+    queue = build_queue(ctx)
+    consumer = queue.huey.create_consumer(
+        workers=threads or settings.worker_threads, worker_type="thread", periodic=False,
+        initial_delay=0.05, max_delay=settings.poll_seconds, backoff=1.5)
+    started = time.time()
+
+    def maintain() -> None:
+        if parent_pid is not None and os.getppid() != parent_pid:
+            # the `freecal serve` that started us is gone: stop rather than run orphaned
+            log.warning("parent process %d ended; stopping", parent_pid)
+            os.kill(os.getpid(), signal.SIGTERM)
+            return
+        workers.beat(ctx.db, WORKER_ID, socket.gethostname(), os.getpid(), started)
+        recover_stale(ctx, queue)
+
+    maintain()
+    ticker = Periodic(settings.heartbeat_seconds, maintain, "worker-maintenance")
+    ticker.start()
+    log.info("worker %s consuming the %s queue in %s", WORKER_ID, settings.queue, settings.data_dir)
+    try:
+        consumer.run()
+    finally:
+        ticker.stop()
+        workers.remove(ctx.db, WORKER_ID)
+    return 0

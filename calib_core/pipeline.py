@@ -93,7 +93,10 @@ def calibrate(
         outlier |= new
         keep = used & ~outlier
         sub = Data(data.object_points[keep], data.image_points[keep], data.view_index[keep], data.n_views)
-        res = levenberg_marquardt(res.model, res.poses, sub, solve_settings)
+        if fit.refit is not None:
+            res = fit.refit(sub, res)
+        else:
+            res = levenberg_marquardt(res.model, res.poses, sub, solve_settings)
 
     progress("metrics", 0.97)
     full = _residuals(res, data)

@@ -7,7 +7,15 @@ rest (views, outliers, metrics, JSON) the same way for every method.
 from __future__ import annotations
 
 from .bspline import BSplineSettings, fit_bspline
+from .fisheye import FisheyeSettings, fit_fisheye
+from .opencv import OpenCVSettings, RationalSettings, fit_opencv
+from .residual_fields import MLSSettings, TPSSettings, fit_mls, fit_tps
 
 METHODS = {
     "bspline": (fit_bspline, BSplineSettings),
+    "zhang": (fit_opencv, OpenCVSettings),
+    "rational": (fit_opencv, RationalSettings),
+    "fisheye": (fit_fisheye, FisheyeSettings),
+    "mls": (fit_mls, MLSSettings),
+    "tps": (fit_tps, TPSSettings),
 }

@@ -26,6 +26,9 @@ class Fit:
     excluded_reason: str = ""
     settings: dict[str, Any] = field(default_factory=dict)
     diagnostics: dict[str, Any] = field(default_factory=dict)
+    # Refit on a subset of the points (after outlier rejection), for methods
+    # whose model is not all refined by LM (residual fields); None: plain LM.
+    refit: Callable[[Any, SolveResult], SolveResult] | None = None
 
 
 def settings_from(cls, values: dict[str, Any]):

@@ -1,0 +1,195 @@
+"""Every method on the same corners, side by side, and a verdict.
+
+``compare(observations)`` runs each method through the same pipeline
+(``pipeline.calibrate``) and answers three questions:
+
+- how well does it fit (overall and per-view rmse; centre vs edge);
+- how well does it predict views it has not seen: k-fold cross-validation
+  over the views (each view validated once; the model is held and only the
+  validated views' poses are refit, as in ``evaluate.py``), and, when given,
+  a separate hold-out set;
+- which to trust: the lowest cross-validated error wins, and we test whether
+  the winner's validation residuals still show spatial structure (neighbouring
+  corners' residuals correlated beyond what shuffling them gives).
+
+The returned object is what ``freecal compare --json`` prints (and what the
+web service serves): ``{"methods": {name: {...}}, "verdict": name, ...}``.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from . import metrics
+from .calibration import Calibration
+from .errors import CalibError, DataError, SettingsError
+from .init import poses_from_rays
+from .methods import METHODS
+from .observations import Observations
+from .pipeline import MIN_VIEWS, calibrate, to_data
+from .solve import SolveSettings, levenberg_marquardt
+
+DEFAULT_METHODS = ("zhang", "rational", "fisheye", "mls", "tps", "bspline")
+STRUCTURE_P_VALUE = 0.01  # below this, the residuals are called spatially structured
+N_PERMUTATIONS = 200
+
+Progress = Callable[[str, float], None]
+
+
+def validation_residuals(cal: Calibration, obs: Observations) -> tuple[np.ndarray, Any]:
+    """Residuals (N, 2) of ``obs`` under ``cal``'s model after a pose-only refit
+    (``evaluate.py``'s protocol), and the flat data they belong to."""
+    data, _, _ = to_data(obs)
+    poses = poses_from_rays(cal.model, data)
+    if poses is None:
+        raise DataError("could not find a board pose for every validation view "
+                        "(too few corners the model can unproject)")
+    res = levenberg_marquardt(cal.model, poses, data, SolveSettings(max_iterations=200, fix_model=True))
+    return res.residuals, data
+
+
+def folds(n_views: int, splits: int) -> list[np.ndarray]:
+    """View indices validated in each split: interleaved, each view exactly once."""
+    return [np.arange(k, n_views, splits) for k in range(splits)]
+
+
+def neighbour_correlation(residuals: np.ndarray, object_points: np.ndarray, view_index: np.ndarray,
+                          seed: int = 0) -> dict[str, float]:
+    """Do neighbouring corners share their error? residuals (N, 2), object_points (N, 3), view_index (N,).
+
+    ρ = Σ_pairs r_i·r_j / Σ_pairs (|r_i|² + |r_j|²)/2 over board neighbours (one
+    square apart) within each view: ≈ 0 for independent noise, → 1 when a
+    smooth error is left. The p-value is the share of within-view shufflings
+    of the residuals that reach the observed ρ."""
+    rng = np.random.default_rng(seed)
+    pairs = []
+    for k in np.unique(view_index):
+        idx = np.flatnonzero(view_index == k)
+        if len(idx) < 3:
+            continue
+        pts = object_points[idx]
+        tree = cKDTree(pts)
+        spacing = tree.query(pts, k=2)[0][:, 1].min()
+        p = tree.query_pairs(1.01 * spacing, output_type="ndarray")
+        pairs.append(idx[p])
+    if not pairs:
+        return {"rho": float("nan"), "p_value": float("nan"), "n_pairs": 0}
+    pairs = np.concatenate(pairs)
+    r = residuals - residuals.mean(axis=0)
+
+    def rho(rr: np.ndarray) -> float:
+        a, b = rr[pairs[:, 0]], rr[pairs[:, 1]]
+        return float(np.sum(a * b) / (0.5 * np.sum(a * a + b * b)))
+
+    observed = rho(r)
+    groups = [np.flatnonzero(view_index == k) for k in np.unique(view_index)]
+    count = 0
+    for _ in range(N_PERMUTATIONS):
+        perm = np.arange(len(r))
+        for g in groups:  # shuffle within each view: keeps each view's error level
+            perm[g] = rng.permutation(g)
+        count += rho(r[perm]) >= observed
+    return {"rho": observed, "p_value": (1 + count) / (1 + N_PERMUTATIONS), "n_pairs": int(len(pairs))}
+
+
+def _mean_std(values: list[float]) -> dict[str, float]:
+    a = np.asarray(values, dtype=float)
+    return {"mean": float(np.mean(a)), "std": float(np.std(a, ddof=1)) if len(a) > 1 else 0.0}
+
+
+def _cross_validate(obs: Observations, method: str, splits: int) -> tuple[dict[str, Any], tuple]:
+    """k-fold over views: calibrate on the rest, validate the held views."""
+    names = [v.name for v in obs.views]
+    cal_rmse, val_rmse, rows = [], [], []
+    all_res, all_obj, all_view = [], [], []
+    for k, held in enumerate(folds(len(names), splits)):
+        val_names = [names[i] for i in held]
+        train = obs.select([n for n in names if n not in val_names])
+        cal = calibrate(train, method)
+        r, data = validation_residuals(cal, obs.select(val_names))
+        cal_rmse.append(cal.metrics["rmse"])
+        val_rmse.append(metrics.rmse(r))
+        rows.append({"validated": val_names, "calibration_rmse": cal_rmse[-1], "validation_rmse": val_rmse[-1],
+                     "increase": val_rmse[-1] - cal_rmse[-1]})
+        all_res.append(r)
+        all_obj.append(data.object_points)
+        all_view.append(data.view_index + 1000 * k)  # distinct ids per split
+    out = {
+        "splits": rows,
+        "calibration_rmse": _mean_std(cal_rmse),
+        "validation_rmse": _mean_std(val_rmse),
+        "increase": _mean_std([v - c for v, c in zip(val_rmse, cal_rmse)]),
+    }
+    return out, (np.concatenate(all_res), np.concatenate(all_obj), np.concatenate(all_view))
+
+
+def compare(observations: Observations, methods: list[str] | None = None, splits: int = 5,
+            holdout: Observations | None = None, progress: Progress | None = None) -> dict[str, Any]:
+    """Run ``methods`` (default: every baseline and bspline) on the same corners.
+
+    Returns ``{"methods": {name: {"rmse", "rmse_axis", "rmse_center", "rmse_edge",
+    "cv_validation_rmse", "holdout_rmse" (with ``holdout``), "views", "cv", ...}
+    or {"error": message}}, "verdict": name or None, "verdict_detail": {...}}``.
+    ``splits``: folds over the views (≥ 2), or 0 to skip cross-validation
+    (the verdict then uses the hold-out set, or the training rmse)."""
+    methods = list(methods) if methods else [m for m in DEFAULT_METHODS if m in METHODS]
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        raise SettingsError(f"unknown method(s) {unknown}; available: {sorted(METHODS)}")
+    n_views = len(observations.views)
+    if splits == 1 or splits < 0:
+        raise SettingsError("splits: expected 0 (no cross-validation) or at least 2")
+    if splits:
+        if splits > n_views:
+            raise SettingsError(f"splits: {splits} folds need at least {splits} views; there are {n_views}")
+        if n_views - int(np.ceil(n_views / splits)) < MIN_VIEWS:
+            raise DataError(f"cross-validation with {splits} splits leaves fewer than {MIN_VIEWS} views to calibrate "
+                            f"on ({n_views} views): use fewer splits (--splits), or 0 to skip it")
+    if holdout is not None and tuple(holdout.image_size) != tuple(observations.image_size):
+        raise DataError("the hold-out views come from a camera with another image_size")
+    progress = progress or (lambda stage, fraction: None)
+    out: dict[str, Any] = {"methods": {}, "n_views": n_views, "n_points": observations.n_points, "splits": splits}
+    cv_residuals = {}
+    for i, name in enumerate(methods):
+        progress(name, i / len(methods))
+        entry: dict[str, Any] = {}
+        try:
+            cal = calibrate(observations, name)
+            entry.update({key: cal.metrics[key] for key in ("rmse", "rmse_axis", "rmse_center", "rmse_edge", "n_points")})
+            entry["views"] = [{"name": v.name, "rmse": v.rmse, "rmse_axis": v.rmse_axis, "n_points": v.n_points}
+                              for v in cal.views]
+            entry["n_params"] = int(cal.model.n_params)
+            if holdout is not None:
+                r, data = validation_residuals(cal, holdout)
+                s = metrics.summary(r, data.image_points, holdout.image_size)
+                entry.update({"holdout_rmse": s["rmse"], "holdout_rmse_axis": s["rmse_axis"],
+                              "holdout_rmse_center": s["rmse_center"], "holdout_rmse_edge": s["rmse_edge"]})
+            if splits:
+                cv, cv_residuals[name] = _cross_validate(observations, name, splits)
+                entry["cv"] = cv
+                entry["cv_validation_rmse"] = cv["validation_rmse"]["mean"]
+        except CalibError as exc:  # a method that cannot handle these corners says why
+            entry = {"error": str(exc)}
+        out["methods"][name] = entry
+    out["verdict"], out["verdict_detail"] = _verdict(out["methods"], cv_residuals)
+    progress("done", 1.0)
+    return out
+
+
+def _verdict(results: dict[str, dict], cv_residuals: dict) -> tuple[str | None, dict[str, Any]]:
+    ok = {n: r for n, r in results.items() if "error" not in r}
+    if not ok:
+        return None, {"reason": "every method failed on these corners"}
+    key = next(k for k in ("cv_validation_rmse", "holdout_rmse", "rmse") if all(k in r for r in ok.values()))
+    best = min(ok, key=lambda n: ok[n][key])
+    detail: dict[str, Any] = {"by": key, "value": ok[best][key]}
+    if best in cv_residuals:
+        r, obj, view = cv_residuals[best]
+        s = neighbour_correlation(r, obj, view)
+        s["structured"] = bool(s["p_value"] < STRUCTURE_P_VALUE)
+        s["test"] = ("correlation of validation residuals between neighbouring corners, against "
+                     f"{N_PERMUTATIONS} within-view shufflings")
+        detail["spatial_structure"] = s
+    return best, detail

@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(VENV)/bin/freecal serve
+	$(VENV)/bin/freecal serve --data-dir data
 
 test: $(STAMP)
 	@bash scripts/ensure-system-packages.sh

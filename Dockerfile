@@ -1,0 +1,23 @@
+# One image for both roles of docker-compose.yml: the API (`freecal serve`) and
+# the workers (`freecal worker`). Build: docker build -t freecal .
+FROM python:3.11-slim
+
+ENV PYTHONDONTWRITEBYTECODE=1 \
+    PYTHONUNBUFFERED=1 \
+    PIP_NO_CACHE_DIR=1 \
+    FREECAL_DATA_DIR=/data
+
+WORKDIR /app
+# dependencies first (cached while only the code changes)
+COPY pyproject.toml README.md ./
+COPY calib_core ./calib_core
+COPY backend ./backend
+RUN pip install --upgrade pip && pip install .
+
+# a non-root user owning the shared data volume
+RUN useradd --create-home --uid 1000 freecal && mkdir -p /data && chown freecal /data
+USER freecal
+VOLUME ["/data"]
+EXPOSE 8000
+
+CMD ["freecal", "serve", "--host", "0.0.0.0", "--port", "8000"]

@@ -217,3 +217,19 @@ def test_health_and_methods(service):
     m = service.client.get("/api/methods").json()
     assert "bspline" in m["methods"]
     assert "/api/jobs" in service.client.get("/openapi.json").json()["paths"]
+
+
+def test_compare_job_gives_a_table_and_the_winner(service):
+    if not service.client.get("/api/methods").json()["compare"]:
+        pytest.skip("compare is not in this build yet")
+    set_id = upload_observations(service.client, synthetic("radial").train.to_json())
+    job_id = create_job(service.client, set_id, "compare", {"methods": ["zhang", "fisheye"], "splits": 2})
+    job = wait_job(service.client, job_id, 120, service.logs())
+    assert job["state"] == "done", job["error"]
+    assert job["summary"]["verdict"] in ("zhang", "fisheye")
+    table = service.client.get(f"/api/jobs/{job_id}/comparison.csv").text.splitlines()
+    assert table[0].startswith("method,rmse") and len(table) == 3
+    cal = Calibration.from_json(service.client.get(f"/api/jobs/{job_id}/calibration.json").json())
+    assert cal.method == job["summary"]["verdict"]
+    r = service.client.post("/api/jobs", json={"set_id": set_id, "method": "compare", "settings": {"splits": "x"}})
+    assert r.status_code == 422

@@ -47,10 +47,11 @@ def write_calibration(out: Path, cal: Calibration, obs: Observations) -> list[st
     return _write(out, files)
 
 
-def write_comparison(out: Path, result: dict[str, Any], obs: Observations) -> list[str]:
-    """A compare job: the comparison table, plus the best calibration's files when it has one."""
+def write_comparison(out: Path, result: dict[str, Any], obs: Observations,
+                     best: Calibration | None = None) -> list[str]:
+    """A compare job: the comparison table, plus the winner's calibration files when there is one."""
     names: list[str] = []
-    best = _best_calibration(result)
+    best = best or _best_calibration(result)
     if best is not None:
         names += write_calibration(out, best, obs)
     rows = comparison_rows(result)
@@ -65,7 +66,9 @@ def summary(cal: Calibration) -> dict[str, Any]:
 
 
 def compare_summary(result: dict[str, Any]) -> dict[str, Any]:
-    return _clean({"methods": [r.get("method") for r in comparison_rows(result)], "best": result.get("best")})
+    return _clean({"methods": [r.get("method") for r in comparison_rows(result)],
+                   "verdict": result.get("verdict", result.get("best")),
+                   "verdict_detail": result.get("verdict_detail")})
 
 
 # ---- derived tables ---------------------------------------------------------------
@@ -201,7 +204,7 @@ def _best_calibration(result: dict[str, Any]) -> Calibration | None:
     cals = next((v for v in result.values() if _is_calibration_map(v)), None)
     if not cals:
         return None
-    name = result.get("best") if result.get("best") in cals else next(iter(cals))
+    name = next((result[k] for k in ("verdict", "best") if result.get(k) in cals), next(iter(cals)))
     cal = cals[name]
     return cal if isinstance(cal, Calibration) else Calibration.from_json(cal)
 

@@ -39,7 +39,13 @@ def validate(method: str, settings: dict[str, Any]) -> None:
         unknown = sorted(set(settings) - set(COMPARE_KEYS))
         if unknown:
             raise ApiError(422, f"unknown compare setting(s) {unknown}; known: {list(COMPARE_KEYS)}")
-        bad = [m for m in settings.get("methods") or [] if m not in METHODS]
+        splits = settings.get("splits", 5)
+        if not isinstance(splits, int) or isinstance(splits, bool) or splits < 0 or splits == 1:
+            raise ApiError(422, "settings.splits: expected 0 (no cross-validation) or an integer of at least 2")
+        chosen = settings.get("methods")
+        if chosen is not None and not (isinstance(chosen, list) and all(isinstance(m, str) for m in chosen)):
+            raise ApiError(422, "settings.methods: expected a list of method names, e.g. [\"zhang\", \"bspline\"]")
+        bad = [m for m in chosen or [] if m not in METHODS]
         if bad:
             raise ApiError(422, f"unknown method(s) {bad} in settings.methods; available: {sorted(METHODS)}")
         return

@@ -15,7 +15,7 @@ from typing import AsyncIterator
 from fastapi import FastAPI
 
 from ..queue.recovery import Periodic, recover_stale, requeue_pending
-from ..queue.tasks import build_queue
+from ..queue.tasks import QueueUnavailable, build_queue
 from . import errors
 from .context import Context
 from .limits import BodyLimit
@@ -33,10 +33,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         ctx = Context.open(settings)
         queue = build_queue(ctx)
         app.state.ctx, app.state.queue = ctx, queue
-        n = requeue_pending(ctx, queue)
-        if n:
-            log.info("re-sent %d queued job(s) to the queue", n)
-        recover_stale(ctx, queue)
+        try:
+            n = requeue_pending(ctx, queue)
+            if n:
+                log.info("re-sent %d queued job(s) to the queue", n)
+            recover_stale(ctx, queue)
+        except QueueUnavailable as exc:  # serve anyway: reads work, and recovery runs again periodically
+            log.warning("the queue is unavailable at start-up: %s", exc)
         reaper = Periodic(settings.heartbeat_seconds, lambda: recover_stale(ctx, queue), "recovery")
         reaper.start()
         try:

@@ -9,13 +9,20 @@ from ..app.context import Context
 from .instance import build_huey
 
 
+class QueueUnavailable(Exception):
+    """The queue's backend (Redis, or the SQLite queue file) cannot take the job now."""
+
+
 @dataclass
 class Queue:
     huey: Huey
     _run: object  # huey TaskWrapper
 
     def enqueue(self, job_id: str) -> None:
-        self._run(job_id)
+        try:
+            self._run(job_id)
+        except Exception as exc:  # redis ConnectionError, sqlite OperationalError, ...
+            raise QueueUnavailable(f"{type(exc).__name__}: {exc}") from exc
 
 
 def build_queue(ctx: Context) -> Queue:

@@ -14,7 +14,7 @@ from ..schemas import Created, JobCreate, JobPublic, JobsPublic, Message
 from ..services import jobs as service
 
 router = APIRouter(prefix="/api/jobs", tags=["jobs"])
-ERRORS = {404: {"model": Message}, 409: {"model": Message}, 422: {"model": Message}}
+ERRORS = {404: {"model": Message}, 409: {"model": Message}, 503: {"model": Message}, 422: {"model": Message}}
 
 # result file → content type; the download is named freecal-job-ID-NAME
 MEDIA = {".json": "application/json", ".csv": "text/csv; charset=utf-8", ".yaml": "application/x-yaml"}

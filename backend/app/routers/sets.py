@@ -16,7 +16,7 @@ from ..services import sets as service
 from ..uploads import Upload
 
 router = APIRouter(prefix="/api/sets", tags=["sets"])
-ERRORS = {404: {"model": Message}, 409: {"model": Message}, 413: {"model": Message},
+ERRORS = {404: {"model": Message}, 409: {"model": Message}, 503: {"model": Message}, 413: {"model": Message},
           415: {"model": Message}, 422: {"model": Message}}
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from ...queue.tasks import Queue
+from ...queue.tasks import Queue, QueueUnavailable
 from .. import storage, uploads
 from ..context import Context
 from ..errors import ApiError, not_found
@@ -38,7 +38,14 @@ def create(ctx: Context, queue: Queue, files: list[uploads.Upload], board_spec: 
         raise
     job_id = new_id()
     jobs.create(ctx.db, job_id, "detect", set_id, None, {"board": board.to_spec()})
-    queue.enqueue(job_id)
+    try:
+        queue.enqueue(job_id)
+    except QueueUnavailable as exc:
+        from .jobs import unavailable
+
+        sets.delete(ctx.db, set_id)
+        ctx.storage.remove_set(set_id)
+        raise unavailable(ctx, exc) from None
     return set_id
 
 

@@ -53,9 +53,9 @@ class Settings:
             raw = env.get("FREECAL_" + f.name.upper())
             if raw is None or raw == "":
                 continue
-            kind = type(getattr(cls, f.name))
+            kind = Path if f.name == "data_dir" else type(getattr(cls, f.name))
             try:
-                values[f.name] = Path(raw) if kind is type(Path()) or f.name == "data_dir" else kind(raw)
+                values[f.name] = kind(raw)
             except ValueError:
                 raise SystemExit(f"FREECAL_{f.name.upper()}={raw!r}: expected {kind.__name__}") from None
         settings = replace(cls(**values), **{k: v for k, v in overrides.items() if v is not None})

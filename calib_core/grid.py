@@ -1,0 +1,94 @@
+"""Place a detected chessboard grid on the board: from grid cells to corner ids.
+
+A detector returns an (h, w) lattice of corners whose orientation and extent
+are its own: OpenCV may return the grid rotated by 180°, and a partial
+detection (``CALIB_CB_LARGER``) has no origin at all. We fix what the image
+itself can tell:
+
+- handedness: the board seen from the front is never mirrored, so the grid is
+  flipped if its column and row directions turn the wrong way;
+- square colour: the cell whose top-left corner is corner ``(r, c)`` is bright
+  iff ``r + c`` is even (OpenCV's convention, ``meta == 2`` at its origin), which
+  picks between 180° rotations of a full board and fixes the parity of a
+  partial grid's offset.
+
+What stays unknown for a partial plain chessboard is *where* on the board the
+patch lies: it is placed at the board's top-left (offset 0 or 1 for parity).
+Its ids and object points are then consistent within the view (the pose
+absorbs the shift), which is all a per-view calibration needs.
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+
+def right_handed(grid: np.ndarray) -> np.ndarray:
+    """Grid (h, w, 2) with columns reversed if it is mirrored in the image."""
+    h, w = grid.shape[:2]
+    if h < 2 or w < 2:
+        return grid
+    dc = grid[:, -1] - grid[:, 0]          # along a row (board x), (h, 2)
+    dr = grid[-1, :] - grid[0, :]          # along a column (board y), (w, 2)
+    cross = np.mean(dc[:, 0]) * np.mean(dr[:, 1]) - np.mean(dc[:, 1]) * np.mean(dr[:, 0])
+    # Image y points down, like board y: a front view has a positive cross product.
+    return grid if cross > 0 else grid[:, ::-1]
+
+
+def cell_brightness_sign(grid: np.ndarray, gray: np.ndarray) -> int:
+    """+1 if cell (0, 0) of the grid (h, w, 2) is bright, -1 if dark, 0 if unknown.
+
+    Uses the median over all cells of each parity, so squares with tags or
+    markers inside (a minority) do not flip the answer.
+    """
+    h, w = grid.shape[:2]
+    if h < 2 or w < 2:
+        return 0
+    centres = 0.25 * (grid[:-1, :-1] + grid[1:, :-1] + grid[:-1, 1:] + grid[1:, 1:])  # (h-1, w-1, 2)
+    m = centres.reshape(-1, 1, 2).astype(np.float32)
+    vals = cv2.remap(gray, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).reshape(h - 1, w - 1)
+    i, j = np.indices(vals.shape)
+    even, odd = vals[(i + j) % 2 == 0], vals[(i + j) % 2 == 1]
+    if even.size == 0 or odd.size == 0:
+        return 0
+    d = float(np.median(even)) - float(np.median(odd))
+    return 0 if abs(d) < 8 else (1 if d > 0 else -1)
+
+
+def place_grid(grid: np.ndarray, cols: int, rows: int, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Ids (N,) and pixels (N, 2) of a detected grid (h, w, 2) on a cols × rows board.
+
+    None when the grid fits the board in no orientation (a detector that ran
+    past the board's edge).
+    """
+    grid = right_handed(grid)
+    sign = cell_brightness_sign(grid, gray)
+    H, W = grid.shape[:2]
+    cell_parity = np.indices((max(H - 1, 1), max(W - 1, 1))).sum(0) % 2  # (H-1, W-1)
+    for k in (0, 2, 1, 3):  # prefer the detector's own orientation, then its 180° turn
+        g = np.rot90(grid, k, axes=(0, 1))
+        h, w = g.shape[:2]
+        if h > rows or w > cols:
+            continue
+        # The new cell (0, 0) was one of the old corner cells: its parity decides its colour.
+        corner_parity = np.rot90(cell_parity, k)[0, 0]
+        bright = sign if corner_parity == 0 else -sign
+        r0 = c0 = 0
+        if bright < 0:  # cell (0,0) dark: it must sit at an odd (r0 + c0)
+            if w + 1 <= cols:
+                c0 = 1
+            elif h + 1 <= rows:
+                r0 = 1
+            else:
+                continue  # a full-size grid with the wrong colour: try the other turn
+        r, c = np.indices((h, w))
+        ids = ((r + r0) * cols + (c + c0)).ravel()
+        return ids, g.reshape(-1, 2).astype(np.float64)
+    if sign != 0:  # colours ambiguous or misread: place it anyway rather than lose the view
+        for k in (0, 1):
+            g = np.rot90(grid, k, axes=(0, 1))
+            h, w = g.shape[:2]
+            if h <= rows and w <= cols:
+                r, c = np.indices((h, w))
+                return (r * cols + c).ravel(), g.reshape(-1, 2).astype(np.float64)
+    return None

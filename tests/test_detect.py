@@ -1,0 +1,125 @@
+"""Detection: reports for bad input, grid placement, coverage, CLI (no real data needed)."""
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from backend.cli import main as cli
+from calib_core.board import BoardSpec
+from calib_core.coverage import coverage, empty_regions
+from calib_core.detect import detect_images
+from calib_core.errors import DataError
+from calib_core.grid import place_grid, right_handed
+
+BOARD = BoardSpec.parse("chessboard:6x5:10mm")
+
+
+def board_image(cols=6, rows=5, sq=40, margin=60, shape=None) -> np.ndarray:
+    """A fronto-parallel chessboard (cols × rows inner corners): the cell right-below corner 0 is white."""
+    h, w = shape or (2 * margin + (rows + 1) * sq, 2 * margin + (cols + 1) * sq)
+    y, x = np.mgrid[0:h, 0:w]
+    i, j = np.floor((x - margin) / sq).astype(int), np.floor((y - margin) / sq).astype(int)
+    inside = (i >= 0) & (i <= cols) & (j >= 0) & (j <= rows)
+    img = np.where(inside & ((i + j) % 2 == 0), 255, 20).astype(np.uint8)
+    img[~inside] = 235
+    return cv2.GaussianBlur(img, (0, 0), 1.0)
+
+
+@pytest.fixture()
+def images(tmp_path):
+    cv2.imwrite(str(tmp_path / "a_good.png"), board_image())
+    cv2.imwrite(str(tmp_path / "b_blank.png"), np.full((360, 400), 128, np.uint8))
+    (tmp_path / "c_broken.jpg").write_bytes(b"not an image at all")
+    cv2.imwrite(str(tmp_path / "d_small.png"), board_image(margin=40))
+    cv2.imwrite(str(tmp_path / "e_good.png"), cv2.flip(board_image(), -1))
+    return tmp_path
+
+
+def test_every_image_gets_a_plain_report(images):
+    calls = []
+    det = detect_images(images, BOARD, progress=lambda d, t: calls.append((d, t)), workers=2)
+    rep = {r.name: r for r in det.reports}
+    assert list(rep) == ["a_good.png", "b_blank.png", "c_broken.jpg", "d_small.png", "e_good.png"]
+    assert rep["a_good.png"].status == "used" and rep["a_good.png"].n_corners == 30
+    assert rep["b_blank.png"].reason == "board not found"
+    assert rep["c_broken.jpg"].reason == "could not decode the file as an image"
+    assert rep["d_small.png"].status == "rejected" and "resolution differs from the set" in rep["d_small.png"].reason
+    assert sorted(calls) == [(k, 5) for k in range(1, 6)]
+    assert det.observations.image_size == (400, 360)
+    v = det.observations.view("a_good.png")
+    assert sorted(v.ids.tolist()) == list(range(30))
+    # Sub-pixel: the true corner of id r*6+c is at margin + (c+1)*sq - 0.5 (pixel-centre convention).
+    truth = np.stack([60 + (v.ids % 6 + 1) * 40 - 0.5, 60 + (v.ids // 6 + 1) * 40 - 0.5], 1)
+    err = np.linalg.norm(v.image_points - truth, axis=1)
+    assert np.median(err) < 0.05
+    # The upside-down copy: the square colours (not the image axes) decide which corner is id 0.
+    np.testing.assert_allclose(det.observations.view("e_good.png").image_points[0],
+                               [399 - v.image_points[0][0], 359 - v.image_points[0][1]], atol=0.1)
+
+
+def test_serial_and_pool_agree(images):
+    a = detect_images(images, BOARD, workers=1)
+    b = detect_images(images, BOARD, workers=2)
+    assert [r.to_json() for r in a.reports] == [r.to_json() for r in b.reports]
+
+
+def test_wrong_board_spec_is_explained(tmp_path):
+    cv2.imwrite(str(tmp_path / "x.png"), board_image())
+    cv2.imwrite(str(tmp_path / "y.png"), np.full((360, 400), 90, np.uint8))
+    det = detect_images([tmp_path / "y.png"], BoardSpec.parse("chessboard:4x3:10mm"), workers=1)
+    assert det.observations is None
+    assert "board (chessboard:4x3:10mm) was found in none of the 1 images" in det.warnings[0]
+    # A board smaller than the spec is a partial view of it: kept, as ids of the 9x6 board.
+    det = detect_images([tmp_path / "x.png"], BoardSpec.parse("chessboard:9x6:10mm"), workers=1)
+    assert det.reports[0].status == "used" and det.reports[0].n_corners == 30
+    assert det.observations.views[0].ids.max() < 54
+
+
+def test_missing_paths_are_clear_errors(tmp_path):
+    with pytest.raises(DataError, match="no such file"):
+        detect_images([tmp_path / "nope.png"], BOARD)
+    with pytest.raises(DataError, match="no images in this folder"):
+        detect_images([tmp_path], BOARD)
+
+
+def test_right_handed_flips_mirrored_grids():
+    c, r = np.meshgrid(np.arange(4.0), np.arange(3.0))
+    grid = np.stack([c * 10, r * 10], -1)
+    np.testing.assert_array_equal(right_handed(grid), grid)
+    np.testing.assert_array_equal(right_handed(grid[:, ::-1]), grid)
+
+
+def test_partial_grid_parity_and_oversize():
+    img = board_image()
+    c, r = np.meshgrid(np.arange(1, 4), np.arange(0, 3))  # a 3x3 patch starting at column 1
+    grid = np.stack([60 + (c + 1) * 40 - 0.5, 60 + (r + 1) * 40 - 0.5], -1).astype(float)
+    ids, pts = place_grid(grid, 6, 5, img)
+    assert ids[0] % 2 == 1  # the dark cell under the patch's first corner needs an odd offset
+    assert place_grid(np.zeros((6, 7, 2)), 6, 5, img) is None
+
+
+def test_coverage_names_empty_regions():
+    pts = np.array([[10.0, 10.0], [990.0, 10.0], [500.0, 400.0]])
+    cov = coverage(pts, (1000, 750))
+    assert cov["grid"] == [8, 6]
+    assert sum(map(sum, cov["counts"])) == 3
+    assert "top-left corner" not in cov["empty_regions"] and "bottom-left corner" in cov["empty_regions"]
+    full = np.ones((6, 8), int)
+    assert empty_regions(full) == []
+    full[2:, -1] = 0
+    assert empty_regions(full) == ["bottom-right corner", "right edge"]
+
+
+def test_cli_detect_writes_observations(images, tmp_path, capsys):
+    out = tmp_path / "obs.json"
+    assert cli(["detect", str(images / "a_good.png"), str(images / "e_good.png"), "--board", "chessboard:6x5:10mm",
+                "-o", str(out)]) == 0
+    text = capsys.readouterr()
+    assert "2/2 images used, 60 corners" in text.out and "detecting [" in text.err
+    doc = json.loads(out.read_text())
+    assert doc["format"] == "freecal.observations/1" and len(doc["views"]) == 2
+    assert cli(["detect", str(images), "--board", "chessboard:9:10mm"]) == 2
+    assert "expected a grid like 9x6" in capsys.readouterr().err

@@ -1,4 +1,4 @@
 """Sub-commands of ``freecal``; each module has ``register(subparsers)``."""
-from . import calibrate, demo, detect, evaluate, serve, synth, worker
+from . import calibrate, compare, demo, detect, evaluate, serve, synth, worker
 
-COMMANDS = [demo, synth, detect, calibrate, evaluate, serve, worker]
+COMMANDS = [demo, synth, detect, calibrate, evaluate, compare, serve, worker]

@@ -33,9 +33,7 @@ from calib_core import synth
 
 ROOT = Path(__file__).resolve().parents[1]
 SETTINGS = {"knots": "uniform", "intervals": [8, 8], "max_iterations": 40, "lambda_smooth": 0.1}
-FAST = {"FREECAL_HEARTBEAT_SECONDS": "1", "FREECAL_LEASE_SECONDS": "10", "FREECAL_POLL_SECONDS": "0.2",
-        # one core per worker, as docker-compose.yml runs them: N workers use N cores
-        "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+FAST = {"FREECAL_HEARTBEAT_SECONDS": "1", "FREECAL_LEASE_SECONDS": "10", "FREECAL_POLL_SECONDS": "0.2"}
 
 
 def free_port() -> int:
@@ -141,13 +139,14 @@ def main(argv: list[str]) -> int:
     p.add_argument("--workers", default="1,2", help="worker counts to compare, e.g. 1,2,4")
     p.add_argument("--readers", type=int, default=4, help="concurrent status readers (one request in flight each)")
     p.add_argument("--rate", type=float, default=40.0, help="status reads per second, all readers together")
+    p.add_argument("--blas-threads", type=int, default=1, help="BLAS threads per worker (FREECAL_BLAS_THREADS)")
     p.add_argument("--queue", choices=("sqlite", "redis"), default="sqlite")
     args = p.parse_args(argv)
 
     from backend.commands.output import table
 
     work = Path(tempfile.mkdtemp(prefix="freecal-bench-"))
-    env = {**FAST, "FREECAL_QUEUE": args.queue}
+    env = {**FAST, "FREECAL_QUEUE": args.queue, "FREECAL_BLAS_THREADS": str(args.blas_threads)}
     redis = None
     try:
         if args.queue == "redis":
@@ -164,7 +163,7 @@ def main(argv: list[str]) -> int:
                          r["p50_ms"], r["p95_ms"], r["p99_ms"]))
         print(f"freecal service on the {args.queue} queue: {args.jobs} bspline jobs "
               f"(uniform 8x8 knots, synthetic {', '.join(synth.KINDS)}), {args.readers} status readers "
-              f"at {args.rate:g} reads/s, "
+              f"at {args.rate:g} reads/s, {args.blas_threads} BLAS thread(s) per worker, "
               f"{os.cpu_count()} cores\n")
         table(["workers", "jobs", "time [s]", "jobs/min", "status reads/s", "p50 [ms]", "p95 [ms]", "p99 [ms]"], rows)
     finally:

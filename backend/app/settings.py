@@ -35,6 +35,10 @@ class Settings:
     poll_seconds: float = 1.0
     # Worker threads per worker process (CPU-bound jobs scale better by processes).
     worker_threads: int = 1
+    # BLAS/OpenMP threads per worker: the solver gains nothing from more, and
+    # several workers (or a busy machine) lose up to 4x to oversubscription.
+    # 0 leaves the libraries' default.
+    blas_threads: int = 1
 
     @property
     def db_path(self) -> Path:

@@ -22,6 +22,10 @@ def run_worker(settings: Settings, threads: int | None = None, parent_pid: int |
     """Consume jobs until SIGINT (finish running jobs) or SIGTERM (stop now)."""
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
     logging.getLogger("huey").setLevel(logging.WARNING)
+    from threadpoolctl import threadpool_limits
+
+    if settings.blas_threads > 0:  # 0: the libraries' default (one thread per core)
+        threadpool_limits(limits=settings.blas_threads)  # process-wide, for every job this worker runs
     ctx = Context.open(settings)
     queue = build_queue(ctx)
     consumer = queue.huey.create_consumer(

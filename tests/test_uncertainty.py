@@ -37,3 +37,18 @@ def test_predicted_projection_spread_matches_noise_realisations():
     # 16 draws: each pixel's empirical spread itself scatters ~18 %, so most, not all, pixels fall within 30 %
     assert np.mean(np.abs(ratio - 1) <= 0.3) > 0.6
     assert np.all(um.std_worst[um.covered] >= um.std_rms[um.covered] - 1e-12)
+
+
+def test_schur_complement_equals_the_model_block_of_the_full_covariance():
+    from calib_core.init import initialise
+    from calib_core.uncertainty import full_covariance, model_covariance
+
+    train = synth.generate("fisheye", sigma=0.3, seed=0, n_views=4).train
+    data, _, _ = to_data(train)
+    init = initialise(data, train.image_size)
+    full, s_full, dof_full = full_covariance(init.model, init.poses, data)
+    block, s_block, dof_block = model_covariance(init.model, init.poses, data)
+    n = init.model.n_params
+    assert np.isclose(s_full, s_block) and np.isclose(dof_full, dof_block)
+    assert np.isclose(dof_full, n + 6 * 4, rtol=1e-6)  # no prior: every parameter is fitted
+    assert np.allclose(block, full[:n, :n], rtol=1e-6, atol=1e-12 * np.abs(full[:n, :n]).max())

@@ -21,6 +21,7 @@ from typing import Callable
 
 import numpy as np
 
+from .. import camera
 from ..errors import DataError, SettingsError
 from ..models.mls import MLSField, MLSModel
 from ..models.tps import TPSField, TPSModel, affine_basis, kernel
@@ -142,8 +143,6 @@ def _fit_field(kind: str, res: SolveResult, data: Data, image_size, s, progress:
     """The residual field on top of the parametric ``res`` on ``data``; the model
     and the cross-validation table."""
     core = res.model.parametric if hasattr(res.model, "parametric") else res.model
-    from .. import camera  # local: keeps the module's import list short
-
     pc = camera.transform(res.poses, data.view_index, data.object_points)
     samples = core.project(pc)
     offsets = data.image_points - samples

@@ -87,7 +87,7 @@ class Calibration:
             "format": FORMAT,
             "image_size": list(self.image_size),
             "model": self.method,
-            "base": self.model.base if self.model.kind not in ("fisheye", "opencv") else "pinhole",
+            "base": self.model.base if self.model.kind not in ("fisheye", "opencv", "hybrid") else "pinhole",
             "intrinsics": self.model.intrinsics_json(),
             "distortion": self.model.distortion_json(),
             "views": [

@@ -172,7 +172,7 @@ def levenberg_marquardt(
     mu, nu = settings.initial_damping, 2.0
     history = [cost]
     status, message = "max_iterations", f"stopped after {settings.max_iterations} iterations"
-    it = 0
+    it = small_steps = 0
     r, jac = _assemble(model, poses, data, settings)
     jtj, g = (jac.T @ jac), jac.T @ r
     while it < settings.max_iterations:
@@ -192,7 +192,9 @@ def levenberg_marquardt(
             nu = 2.0
             if callback is not None:
                 callback(it, cost)
-            if decrease <= settings.ftol * cost:
+            # Two small decreases in a row: one alone may be a heavily damped step.
+            small_steps = small_steps + 1 if decrease <= settings.ftol * cost else 0
+            if small_steps >= 2:
                 status, message = "converged", f"relative cost decrease below ftol={settings.ftol:g}"
                 break
             if step_small:

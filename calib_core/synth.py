@@ -48,7 +48,7 @@ def opencv_distort(x: np.ndarray, k1, k2, k3, p1, p2) -> np.ndarray:
     )
 
 
-def _blend(t: np.ndarray, a, b, width: float = 0.25) -> np.ndarray:
+def _blend(t: np.ndarray, a, b, width: float = 0.5) -> np.ndarray:
     """a for t ≪ 0, b for t ≫ 0, smooth in between."""
     s = 0.5 * (1 + np.tanh(t / width))
     return a + (b - a) * s

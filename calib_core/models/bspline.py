@@ -13,10 +13,14 @@ constraint rows. The remaining near-degeneracy (a common tilt of every pose
 against a projective change of the field) is governed by the regularisers.
 
 Regularisers, as prior rows of the least-squares cost
-``Σ‖r‖² + λ_reg ‖P‖² + λ_smooth ‖D P‖²``: λ weighs one squared control value
-(pixels) against one squared residual component (pixels). It acts like a
-prior, so its influence shrinks as the data grows, as a prior's should; the
-numbers mean the same at every data-set size.
+``Σ‖r‖² + λ_reg ‖P − P₀‖² + λ_smooth ‖D (P − P₀)‖²``: D approximates the
+bending energy of the field (``bspline.bending_operator``), λ weighs it against
+one squared residual component (pixels²). These act like a prior, so their
+influence shrinks as the data grows, as a prior's should, and a value means
+the same at every data-set size. ``P₀`` (``prior_control``) is the field of
+the initial camera (zero if not given): the field's *departure* from it is
+what is kept small and smooth, so where corners are missing the field follows
+the lens's own shape instead of flattening out.
 """
 from __future__ import annotations
 
@@ -32,6 +36,37 @@ from .base import CameraModel, intrinsics_jacobian
 GAUGE_WEIGHT = 1e4  # constraint rows are multiplied by this: violations ~1e-8 px
 
 
+def gauge_rows(field: BSplineField, point: tuple[float, float]) -> sp.csr_matrix:
+    """(6, 2 n_controls): Δx, Δy and their u, v derivatives (scaled to pixels
+    over the domain) at ``point``; rows interleave x and y."""
+    nc = field.n_controls
+    d = field.design(np.array([point]), derivative=True)
+    u0, u1, v0, v1 = field.domain
+    scale = 0.5 * ((u1 - u0) + (v1 - v0))
+    rows = []
+    for w in (d.w[0], scale * d.w_u[0], scale * d.w_v[0]):
+        row = sp.csr_matrix((w, d.cols[0], [0, 16]), shape=(1, nc))
+        rows += [sp.hstack([row, sp.csr_matrix((1, nc))]), sp.hstack([sp.csr_matrix((1, nc)), row])]
+    return sp.vstack(rows).tocsr()
+
+
+def field_prior_rows(field: BSplineField, lambda_reg: float, lambda_smooth: float,
+                     gauge_point: tuple[float, float] | None) -> sp.csr_matrix:
+    """Prior rows over ``[control_x, control_y]``: √λ_reg·I, √λ_smooth·D per
+    component, then the 6 gauge rows (weighted) if a gauge point is given."""
+    nc = field.n_controls
+    blocks = []
+    if lambda_reg > 0:
+        blocks.append(np.sqrt(lambda_reg) * sp.identity(nc))
+    if lambda_smooth > 0:
+        blocks.append(np.sqrt(lambda_smooth) * field.bending())
+    per_component = sp.vstack(blocks) if blocks else sp.csr_matrix((0, nc))
+    rows = [sp.block_diag([per_component, per_component])]
+    if gauge_point is not None:
+        rows.append(GAUGE_WEIGHT * gauge_rows(field, gauge_point))
+    return sp.vstack(rows).tocsr()
+
+
 class BSplineModel(CameraModel):
     kind = "bspline"
 
@@ -43,6 +78,7 @@ class BSplineModel(CameraModel):
         lambda_reg: float = 1e-3,
         lambda_smooth: float = 1e-3,
         gauge_point: tuple[float, float] | None = None,
+        prior_control: np.ndarray | None = None,
     ):
         self.intrinsics = np.asarray(intrinsics, dtype=np.float64)
         self.field = field
@@ -50,7 +86,9 @@ class BSplineModel(CameraModel):
         self.lambda_reg = float(lambda_reg)
         self.lambda_smooth = float(lambda_smooth)
         self.gauge_point = None if gauge_point is None else (float(gauge_point[0]), float(gauge_point[1]))
+        self.prior_control = prior_control  # (n_u, n_v, 2) or None
         self._prior_matrix = None
+        self._prior_offset = None
 
     @property
     def n_params(self) -> int:
@@ -91,35 +129,24 @@ class BSplineModel(CameraModel):
     # ---- prior rows: regularisers and gauge ----------------------------------
     def prior(self):
         if self._prior_matrix is None:
-            self._prior_matrix = self._build_prior()
+            self._prior_matrix, self._prior_offset = self._build_prior()
         m = self._prior_matrix
-        return m @ self.params(), m
+        return m @ self.params() - self._prior_offset, m
 
-    def _build_prior(self) -> sp.csr_matrix:
-        nc = self.field.n_controls
-        blocks = []
-        if self.lambda_reg > 0:
-            blocks.append(np.sqrt(self.lambda_reg) * sp.identity(nc))
-        if self.lambda_smooth > 0:
-            blocks.append(np.sqrt(self.lambda_smooth) * self.field.bending())
-        per_component = sp.vstack(blocks) if blocks else sp.csr_matrix((0, nc))
-        rows = [sp.block_diag([per_component, per_component])]
-        if self.gauge_point is not None:
-            rows.append(GAUGE_WEIGHT * self.gauge_rows())
-        controls = sp.vstack(rows)
-        return sp.hstack([sp.csr_matrix((controls.shape[0], 5)), controls]).tocsr()
+    def _build_prior(self):
+        controls = field_prior_rows(self.field, self.lambda_reg, self.lambda_smooth, self.gauge_point)
+        offset = np.zeros(controls.shape[0])
+        if self.prior_control is not None:
+            p0 = self.prior_control
+            # The regulariser rows act on P − P₀; the gauge rows (last 6) on P.
+            offset = controls @ np.concatenate([p0[..., 0].ravel(), p0[..., 1].ravel()])
+            if self.gauge_point is not None:
+                offset[-6:] = 0.0
+        matrix = sp.hstack([sp.csr_matrix((controls.shape[0], 5)), controls]).tocsr()
+        return matrix, offset
 
     def gauge_rows(self) -> sp.csr_matrix:
-        """(6, 2 n_controls): Δ, and ∂Δ/∂u, ∂Δ/∂v scaled to pixels over the domain, at c0."""
-        nc = self.field.n_controls
-        d = self.field.design(np.array([self.gauge_point]), derivative=True)
-        u0, u1, v0, v1 = self.field.domain
-        scale = 0.5 * ((u1 - u0) + (v1 - v0))
-        rows = []
-        for w in (d.w[0], scale * d.w_u[0], scale * d.w_v[0]):
-            row = sp.csr_matrix((w, d.cols[0], [0, 16]), shape=(1, nc))
-            rows += [sp.hstack([row, sp.csr_matrix((1, nc))]), sp.hstack([sp.csr_matrix((1, nc)), row])]
-        return sp.vstack(rows).tocsr()
+        return gauge_rows(self.field, self.gauge_point)
 
     # ---- JSON ------------------------------------------------------------------
     def distortion_json(self) -> dict[str, Any]:
@@ -133,6 +160,7 @@ class BSplineModel(CameraModel):
                 "type": "field value and gradient zero at a fixed ideal pixel",
                 "point": list(self.gauge_point) if self.gauge_point else None,
             },
+            "prior_field": "initial Kannala-Brandt camera" if self.prior_control is not None else "zero",
         }
 
     @classmethod

@@ -17,7 +17,7 @@ from scipy.spatial import Delaunay, QhullError
 from .errors import SettingsError
 
 
-STRATEGIES = ("kde", "kde-paper", "uniform")
+STRATEGIES = ("kde", "kde-paper", "uniform", "explicit")
 
 
 @dataclass
@@ -32,6 +32,7 @@ class KnotSettings:
     min_support: int | None = None  # None: max(10, N/50)
     coverage_rounds: int = 30
     intervals: tuple[int, int] = (10, 10)  # uniform grid, or KDE-quantile intervals for "kde"
+    interior: tuple[tuple[float, ...], tuple[float, ...]] | None = None  # "explicit": interior knots (u, v)
 
     def validate(self) -> None:
         if self.strategy not in STRATEGIES:
@@ -46,6 +47,8 @@ class KnotSettings:
             raise SettingsError("max_intervals must be at least 1")
         if min(self.intervals) < 1:
             raise SettingsError("intervals must be at least 1 per direction")
+        if self.strategy == "explicit" and (self.interior is None or len(self.interior) != 2):
+            raise SettingsError("knots 'explicit' needs interior_knots: [[u knots...], [v knots...]]")
 
 
 def local_std_weights(d: np.ndarray, z: np.ndarray, settings: KnotSettings) -> np.ndarray:
@@ -264,7 +267,18 @@ def breaks_for(samples: np.ndarray, weights: np.ndarray, domain, settings: KnotS
     """Interval breaks along u and v by the chosen strategy."""
     if settings.strategy == "uniform":
         return uniform_breaks(domain, settings.intervals)
+    if settings.strategy == "explicit":
+        return explicit_breaks(domain, settings.interior)
     return adaptive_breaks(samples, weights, domain, settings, footprint)
+
+
+def explicit_breaks(domain, interior):
+    """The domain ends around given interior knots (those outside the domain dropped)."""
+    out = []
+    for (lo, hi), knots in zip(((domain[0], domain[1]), (domain[2], domain[3])), interior):
+        k = np.unique(np.asarray(knots, dtype=float))
+        out.append(np.concatenate([[lo], k[(k > lo) & (k < hi)], [hi]]))
+    return out[0], out[1]
 
 
 def uniform_breaks(domain, intervals: tuple[int, int]):

@@ -56,7 +56,8 @@ GCV_TOLERANCE = 0.02
 @dataclass
 class BSplineSettings:
     core: str = "auto"  # "none" (the paper's model) | "rational" | "fisheye" | "auto" (see CORES)
-    knots: str = "kde"  # "kde" | "kde-paper" (the paper's candidates only) | "uniform"
+    knots: str = "kde"  # "kde" | "kde-paper" (the paper's candidates only) | "uniform" | "explicit"
+    interior_knots: tuple | None = None  # "explicit": ([u knots], [v knots]) in the field's pixels
     intervals: int | tuple[int, int] | str = AUTO  # per direction; "auto": chosen by GCV
     bandwidth: str = "scott"
     bandwidth_factor: float = 1.0
@@ -94,13 +95,13 @@ class BSplineSettings:
                 self.intervals = (int(self.intervals[0]), int(self.intervals[1]))
             except (TypeError, ValueError, IndexError):
                 raise SettingsError(f"intervals must be 'auto', N or (N, M), got {self.intervals!r}") from None
-        self.knot_settings((10, 10)).validate()
+        self.knot_settings((10, 10) if self.intervals == AUTO else self.intervals).validate()
 
     def knot_settings(self, intervals: tuple[int, int]) -> knots.KnotSettings:
         return knots.KnotSettings(
             strategy=self.knots, bandwidth=self.bandwidth, bandwidth_factor=self.bandwidth_factor,
             window_ratio=self.window_ratio, max_intervals=self.max_intervals, min_support=self.min_support,
-            intervals=intervals,
+            intervals=intervals, interior=self.interior_knots,
         )
 
 

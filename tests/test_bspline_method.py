@@ -1,0 +1,78 @@
+"""The B-spline method end to end on the paper's synthetic lenses: at the noise
+floor on training corners, accurate on noise-free held-out views, and honest
+about what it cannot do. (The benchmark averages over seeds; these use one.)"""
+import numpy as np
+import pytest
+
+from calib_core import calibrate, evaluate
+from calib_core.errors import DataError, SettingsError
+from calib_core.metrics import noise_floor
+from calib_core.models.bspline import gauge_rows
+from calib_core.observations import Observations
+
+from .conftest import synthetic
+
+
+@pytest.fixture(scope="module")
+def results():
+    out = {}
+    for kind in ("radial", "asymmetric", "fisheye"):
+        s = synthetic(kind)
+        cal = calibrate(s.train, "bspline")
+        out[kind] = (cal, evaluate(cal, s.holdout))
+    return out
+
+
+@pytest.mark.parametrize("kind, ratio", [("radial", 1.05), ("asymmetric", 1.05), ("fisheye", 1.5)])
+def test_training_error_is_at_the_noise_floor(results, kind, ratio):
+    cal, _ = results[kind]
+    floor = noise_floor(0.3, cal.diagnostics["solver"]["n_unknowns"], cal.metrics["n_points"])
+    assert cal.metrics["rmse_axis"] <= ratio * floor
+    assert cal.metrics["rmse_axis"] >= 0.9 * floor  # not fitting the noise either
+
+
+@pytest.mark.parametrize("kind, limit", [("radial", 0.12), ("asymmetric", 0.12), ("fisheye", 0.12)])
+def test_holdout_error_over_the_whole_image(results, kind, limit):
+    _, hold = results[kind]
+    assert hold["rmse"] <= limit
+    assert hold["rmse_edge"] <= 1.5 * limit  # edges and corners included
+
+
+def test_result_carries_diagnostics_and_settings(results):
+    cal, _ = results["asymmetric"]
+    d = cal.diagnostics
+    assert d["design"]["rank"] == d["design"]["n_controls"] and d["design"]["zero_columns"] >= 0
+    assert d["solver"]["status"] in ("converged", "stalled") and d["solver"]["iterations"] > 0
+    assert d["smoothing_curve"] and all("gcv" in c for c in d["smoothing_curve"])
+    assert cal.settings["gauge"]["point"] is not None and cal.settings["intervals_used"]
+
+
+def test_gauge_holds_the_field_flat_at_the_principal_point(results):
+    cal, _ = results["asymmetric"]
+    field = cal.model.field
+    values = gauge_rows(field, tuple(cal.settings["gauge"]["point"])) @ np.concatenate(
+        [field.control[..., 0].ravel(), field.control[..., 1].ravel()])
+    assert np.max(np.abs(values)) < 1e-4
+
+
+def test_paper_model_without_core_reaches_the_floor():
+    s = synthetic("asymmetric")
+    cal = calibrate(s.train, "bspline", core="none", intervals=10, lambda_smooth=100.0)
+    floor = noise_floor(0.3, cal.diagnostics["solver"]["n_unknowns"], cal.metrics["n_points"])
+    assert cal.model.kind == "bspline" and cal.metrics["rmse_axis"] <= 1.05 * floor
+    assert evaluate(cal, s.holdout)["rmse"] < 0.2
+
+
+def test_too_few_views_is_a_clear_error():
+    s = synthetic("radial")
+    with pytest.raises(DataError, match="at least 3 views"):
+        calibrate(Observations(s.train.image_size, s.train.views[:2]), "bspline")
+
+
+@pytest.mark.parametrize("settings, message", [
+    (dict(lambda_smooth=-1.0), "lambda_smooth"), (dict(core="quartic"), "core"),
+    (dict(intervals=0), "intervals"), (dict(base="orthographic"), "base"), (dict(knotz="kde"), "unknown setting"),
+])
+def test_bad_settings_are_named(settings, message):
+    with pytest.raises(SettingsError, match=message):
+        calibrate(synthetic("radial").train, "bspline", **settings)

@@ -1,0 +1,31 @@
+"""The freecal command as a user runs it: synth → calibrate → evaluate."""
+import json
+
+from backend.cli import main
+
+
+def test_synth_calibrate_evaluate(tmp_path, capsys):
+    out = tmp_path / "set"
+    assert main(["synth", "--kind", "asymmetric", "--seed", "1", "-o", str(out)]) == 0
+    for name in ("train.json", "holdout.json", "truth.json"):
+        assert (out / name).is_file()
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(out / "train.json"), "-o", str(cal), "-q", "--intervals", "8",
+                 "--lambda-smooth", "100"]) == 0
+    printed = capsys.readouterr().out
+    assert "overall" in printed and "rmse [px]" in printed
+    doc = json.loads(cal.read_text())
+    assert doc["format"] == "freecal.calibration/1" and doc["settings"]["intervals"] == [8, 8]
+    assert main(["evaluate", str(cal), str(out / "holdout.json"), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["rmse"] < 0.2 and len(result["views"]) > 3
+
+
+def test_user_errors_exit_2_with_one_line(tmp_path, capsys):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"format": "freecal.observations/1", "image_size": [10, 10], "views": []}')
+    assert main(["calibrate", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "views" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert main(["calibrate", str(tmp_path / "missing.json")]) == 2
+    assert "no such file" in capsys.readouterr().err

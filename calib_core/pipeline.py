@@ -116,8 +116,9 @@ def calibrate(
         "iterations": res.iterations, "status": res.status, "message": res.message,
         "cost": res.cost, "n_unknowns": n_unknowns, "seconds": time.perf_counter() - t0,
     }
-    diagnostics["excluded_points"] = {"outliers": int(outlier.sum()), "outside_model": int(fit.excluded.sum()),
-                                      "outside_model_reason": fit.excluded_reason}
+    diagnostics["excluded_points"] = {"outliers": int(outlier.sum()), "outside_model": int(fit.excluded.sum())}
+    if fit.excluded.any():
+        diagnostics["excluded_points"]["outside_model_reason"] = fit.excluded_reason
     settings_out = {"method": method, "outlier_sigma": outlier_sigma, **fit.settings}
     progress("done", 1.0)
     return Calibration(res.model, obs.image_size, method, views, dropped, summary, settings_out, diagnostics)

@@ -47,7 +47,7 @@ AUTO_INTERVALS = (6, 8, 10, 12, 15)
 CORES = ("auto", "none", "rational", "fisheye")
 # With core="auto": OpenCV's rational core unless more than this fraction of
 # the corners lies beyond its pinhole's reach; then Kannala–Brandt.
-AUTO_CORE_MAX_EXCLUDED = 0.02
+AUTO_CORE_MAX_EXCLUDED = 0.0
 # Knot counts within this fraction of the best GCV score count as equally good:
 # the coarsest of them is taken (see _choose_smoothing).
 GCV_TOLERANCE = 0.02

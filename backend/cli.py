@@ -6,6 +6,7 @@ exit with status 2; never a traceback.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from calib_core.errors import CalibError
@@ -31,6 +32,9 @@ def main(argv: list[str] | None = None) -> int:
     except CalibError as exc:
         print(f"freecal {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # output piped into head, less...: not an error
+        sys.stdout = open(os.devnull, "w")
+        return 0
     except KeyboardInterrupt:
         print(f"freecal {args.command}: interrupted", file=sys.stderr)
         return 130

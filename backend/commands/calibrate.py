@@ -22,10 +22,24 @@ def _pair(text: str) -> tuple[int, int]:
     return parts[0], parts[1]
 
 
+def _intervals(text: str):
+    return "auto" if text == "auto" else _pair(text)
+
+
+def _number_or_auto(text: str):
+    if text == "auto":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or auto, got {text!r}") from None
+
+
 # (flag, settings key, type, help); only the flags given reach the method.
 BSPLINE_FLAGS = [
-    ("--knots", "knots", str, "knot strategy: kde (the paper's adaptive KDE knots) or uniform"),
-    ("--intervals", "intervals", _pair, "intervals per direction for uniform knots, N or NxM"),
+    ("--core", "core", str, "parametric core under the field: auto, none (the paper's model), rational, fisheye"),
+    ("--knots", "knots", str, "knot strategy: kde, kde-paper (the paper's candidates only), uniform"),
+    ("--intervals", "intervals", _intervals, "knot intervals per direction: N, NxM or auto (GCV)"),
     ("--max-intervals", "max_intervals", int, "cap of knot intervals per direction (kde)"),
     ("--min-support", "min_support", int, "minimum corners per knot interval (default max(10, N/50))"),
     ("--bandwidth", "bandwidth", str, "KDE bandwidth rule: scott or silverman"),
@@ -33,7 +47,7 @@ BSPLINE_FLAGS = [
     ("--window-ratio", "window_ratio", float, "local-std window ratio rho"),
     ("--weighting", "weighting", str, "sample weights: local_std, uniform, magnitude, gradient"),
     ("--lambda-reg", "lambda_reg", float, "L2 weight on control values"),
-    ("--lambda-smooth", "lambda_smooth", float, "bending-energy weight of the field"),
+    ("--lambda-smooth", "lambda_smooth", _number_or_auto, "bending-energy weight of the field, or auto (GCV)"),
     ("--base", "base", str, "base projection: pinhole, equidistant, stereographic"),
     ("--max-iterations", "max_iterations", int, "Levenberg-Marquardt iteration cap"),
     ("--ftol", "ftol", float, "relative cost decrease that ends the solve"),
@@ -99,6 +113,13 @@ def print_summary(cal) -> None:
         g = d["design"]
         print(f"knot intervals {g['intervals'][0]} x {g['intervals'][1]}, design rank {g['rank']}/{g['n_controls']}, "
               f"zero columns {g['zero_columns']}")
+    curve = d.get("smoothing_curve")
+    if curve:
+        print("knot grid and smoothing chosen by generalised cross-validation (lower is better):")
+        chosen = cal.settings.get("intervals_used")
+        table(["grid", "lambda_smooth", "GCV score [px^2]", "effective parameters", "chosen"],
+              [("x".join(map(str, c["intervals"])), c["lambda_smooth"], c["gcv"], f"{c['dof']:.0f}",
+                "*" if c["intervals"] == chosen else "") for c in curve])
     sv = d.get("solver", {})
     print(f"solver: {sv.get('status')} after {sv.get('iterations')} iterations ({sv.get('message')}), "
           f"{sv.get('seconds', 0):.2f} s")

@@ -92,9 +92,10 @@ def knots(seeds: int) -> None:
     rows = [_design_row("kde (freecal)", run("asymmetric", 0.3, 0, **base)),
             _design_row("kde-paper", run("asymmetric", 0.3, 0, knots="kde-paper", **base)),
             _design_row("uniform 10x10", run("asymmetric", 0.3, 0, knots="uniform", intervals=10, **base))]
-    # Pathological: every interior knot crowded into the central fifth of the image.
+    # Pathological: every interior knot crowded into 8 px at the image centre,
+    # so that most tensor cells there hold no corner.
     w, h = synth.IMAGE_SIZE
-    crowd = (list(np.linspace(0.4 * w, 0.6 * w, 9)), list(np.linspace(0.4 * h, 0.6 * h, 9)))
+    crowd = (list(np.linspace(w / 2 - 4, w / 2 + 4, 9)), list(np.linspace(h / 2 - 4, h / 2 + 4, 9)))
     rows.append(_design_row("pathological", run("asymmetric", 0.3, 0, knots="explicit", interior_knots=crowd,
                                                 lambda_smooth=1e-3, **base)))
     print_table(DESIGN_HEADERS, rows)

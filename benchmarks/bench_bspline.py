@@ -4,7 +4,7 @@ ablations (Tables 10–14) and speed.
 
     python -m benchmarks bspline [SECTION ...] [--seeds N]
 
-SECTION: accuracy, noise, knots, bandwidth, weighting, lambda, speed (default:
+SECTION: accuracy, noise, knots, bandwidth, weighting, lambda, density, speed (default:
 all). Every figure is measured here, in this process; nothing is copied.
 """
 from __future__ import annotations
@@ -134,6 +134,20 @@ def lambdas(seeds: int) -> None:
           "the default chooses it by GCV)")
 
 
+def density(seeds: int) -> None:
+    print("\n## Knot density from the data: GCV's choice against the best fixed grid (hold-out rmse [px])\n")
+    rows = []
+    grids = (6, 8, 10, 12, 15)
+    for kind in ("asymmetric", "radial"):
+        for core in ("none", "auto"):
+            fixed = {m: np.mean([run(kind, 0.3, sd, core=core, intervals=m)["holdout"] for sd in range(seeds)])
+                     for m in grids}
+            auto = np.mean([run(kind, 0.3, sd, core=core)["holdout"] for sd in range(seeds)])
+            best = min(fixed.values())
+            rows.append((kind, core, *[fixed[m] for m in grids], auto, auto / best))
+    print_table(["lens", "core", *[f"{m}x{m}" for m in grids], "auto (GCV)", "auto / best fixed"], rows)
+
+
 def speed(seeds: int) -> None:
     print("\n## Speed (one core: OPENBLAS_NUM_THREADS=1), end to end from corners to calibration\n")
     rows = []
@@ -150,7 +164,7 @@ def speed(seeds: int) -> None:
 
 
 SECTIONS = {"accuracy": accuracy, "noise": noise, "knots": knots, "bandwidth": bandwidth,
-            "weighting": weighting, "lambda": lambdas, "speed": speed}
+            "weighting": weighting, "lambda": lambdas, "density": density, "speed": speed}
 
 
 def main(argv: list[str]) -> int:

@@ -19,7 +19,8 @@ from ..queue.tasks import QueueUnavailable, build_queue
 from . import errors
 from .context import Context
 from .limits import BodyLimit
-from .routers import health, jobs, sets
+from . import frontend
+from .routers import figures, health, images, jobs, sets, viewer
 from .settings import Settings
 
 log = logging.getLogger("freecal.api")
@@ -42,10 +43,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             log.warning("the queue is unavailable at start-up: %s", exc)
         reaper = Periodic(settings.heartbeat_seconds, lambda: recover_stale(ctx, queue), "recovery")
         reaper.start()
+        app.state.viewer = start_viewer(ctx) if settings.viewer else None
         try:
             yield
         finally:
             reaper.stop()
+            if app.state.viewer is not None:
+                app.state.viewer.stop()
 
     app = FastAPI(
         title="freecal",
@@ -56,6 +60,20 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     errors.install(app)
     app.add_middleware(BodyLimit, max_bytes=settings.max_upload_bytes + 1024 * 1024)  # + multipart overhead
-    for module in (sets, jobs, health):
+    for module in (sets, images, jobs, figures, viewer, health):
         app.include_router(module.router)
+    frontend.mount(app)  # last: the page at / never shadows /api or /docs
     return app
+
+
+def start_viewer(ctx: Context):
+    """The 3D view (viser) on loopback, or None if it cannot start: the API serves anyway."""
+    try:
+        from ..viewer.server import Viewer
+
+        view = Viewer(ctx, port=ctx.settings.viewer_port)
+        log.info("3D view on http://127.0.0.1:%d", view.port)
+        return view
+    except Exception:  # an optional part: log why, keep serving
+        log.exception("the 3D view could not start")
+        return None

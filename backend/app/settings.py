@@ -39,6 +39,10 @@ class Settings:
     # several workers (or a busy machine) lose up to 4x to oversubscription.
     # 0 leaves the libraries' default.
     blas_threads: int = 1
+    # The 3D view (viser) runs inside the API process on its own loopback port;
+    # viser takes the next free port if this one is taken (0: any free port).
+    viewer: bool = True
+    viewer_port: int = 8080
 
     @property
     def db_path(self) -> Path:
@@ -58,6 +62,8 @@ class Settings:
             if raw is None or raw == "":
                 continue
             kind = Path if f.name == "data_dir" else type(getattr(cls, f.name))
+            if kind is bool:  # bool("0") is True: read the words people write
+                kind = _flag
             try:
                 values[f.name] = kind(raw)
             except ValueError:
@@ -70,3 +76,12 @@ class Settings:
     def to_env(self) -> dict[str, str]:
         """The variables that rebuild these settings in a child process."""
         return {"FREECAL_" + f.name.upper(): str(getattr(self, f.name)) for f in fields(self)}
+
+
+def _flag(raw: str) -> bool:
+    word = raw.strip().lower()
+    if word in ("1", "true", "yes", "on"):
+        return True
+    if word in ("0", "false", "no", "off"):
+        return False
+    raise ValueError(raw)

@@ -1,0 +1,30 @@
+"""/api/sets/{id}/images/{name}/thumbnail: a small JPEG of one uploaded image (for the page)."""
+from __future__ import annotations
+
+from fastapi import APIRouter
+from fastapi.responses import FileResponse
+from starlette.concurrency import run_in_threadpool
+
+from ..deps import ContextDep
+from ..errors import ApiError
+from ..schemas import Message
+from ..services import sets as service
+from ..thumbnails import SIZES, thumbnail
+
+router = APIRouter(prefix="/api/sets", tags=["sets"])
+
+
+@router.get("/{set_id}/images/{name}/thumbnail", response_class=FileResponse,
+            responses={404: {"model": Message}, 422: {"model": Message}})
+async def read_thumbnail(ctx: ContextDep, set_id: str, name: str, size: int = SIZES[0]) -> FileResponse:
+    """The image scaled down to ``size`` pixels on its longest side (160 or 640), JPEG, cached."""
+    if size not in SIZES:
+        raise ApiError(422, f"size must be one of {', '.join(map(str, SIZES))} (pixels on the longest side)")
+    row = service.get(ctx, set_id)
+    if name not in {im["name"] for im in row.get("images") or []}:
+        raise ApiError(404, f"set {set_id} has no image {name!r}")
+    path = await run_in_threadpool(thumbnail, ctx.storage.images_dir(set_id), ctx.storage.set_dir(set_id) / "thumbs",
+                                   name, size)
+    if path is None:
+        raise ApiError(404, f"image {name!r} of set {set_id} cannot be read")
+    return FileResponse(path, media_type="image/jpeg", headers={"Cache-Control": "max-age=3600"})

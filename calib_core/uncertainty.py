@@ -75,14 +75,24 @@ def model_covariance(model, poses: np.ndarray, data: Data, sigma: float | None =
     # H_pp⁻¹ H_pm, block by block: (V, 6, n_m) → (6V, n_m)
     pp_pm = np.einsum("vij,vjm->vim", inv_pp, h_mp.T.reshape(n_views, 6, n_m)).reshape(6 * n_views, n_m)
     schur = h_mm - h_mp @ pp_pm
-    s_inv = np.linalg.inv(schur)
+    s_inv = _inverse(schur)
     z = np.vstack([s_inv, -pp_pm @ s_inv])  # the model columns of H⁻¹
     dof = _effective_dof(h, m_data)
     if sigma is None:
         rd = r[:n_rows]
         sigma = float(np.sqrt(np.sum(rd * rd) / max(n_rows - dof, 1.0)))
-    cov = sigma**2 * z.T @ m_data @ z
+    a = np.asarray(jd @ z)  # (2N, n_m): AᵀA stays positive semi-definite
+    cov = sigma**2 * a.T @ a
     return 0.5 * (cov + cov.T), sigma, dof
+
+
+def _inverse(h: np.ndarray) -> np.ndarray:
+    """H⁻¹ (symmetrised). H is badly conditioned (gauge rows of weight 1e4 against
+    weakly determined directions); LU with pivoting copes with that better than
+    Jacobi-scaled inversion did here, and the covariance is then formed as
+    AᵀA (A = J_d H⁻¹), which stays positive semi-definite whatever the rounding."""
+    inv = np.linalg.inv(h)
+    return 0.5 * (inv + inv.T)
 
 
 def _effective_dof(h: np.ndarray, m_data: np.ndarray) -> float:
@@ -97,12 +107,13 @@ def full_covariance(model, poses: np.ndarray, data: Data, sigma: float | None = 
     jd = jac[:n_rows]
     h = (jac.T @ jac).toarray()
     m_data = (jd.T @ jd).toarray()
-    h_inv = np.linalg.inv(h)
+    h_inv = _inverse(h)
     dof = float(np.sum(h_inv * m_data.T))  # tr(H⁻¹ M)
     if sigma is None:
         rd = r[:n_rows]
         sigma = float(np.sqrt(np.sum(rd * rd) / max(n_rows - dof, 1.0)))
-    cov = sigma**2 * h_inv @ m_data @ h_inv
+    a = np.asarray(jd @ h_inv)  # (2N, n): written as AᵀA the covariance stays positive semi-definite
+    cov = sigma**2 * a.T @ a
     return 0.5 * (cov + cov.T), sigma, dof
 
 

@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
 # System packages the test suite needs, installed only when missing (idempotent, quiet).
 # redis-server: the service tests run the Redis queue against a real server.
+# chromium: the browser tests drive Debian's Chromium (Playwright's own browser download
+# needs hosts we cannot reach, and is never used).
 set -euo pipefail
 
 missing=()
 command -v redis-server >/dev/null 2>&1 || missing+=(redis-server)
+[ -x /usr/bin/chromium ] || missing+=(chromium)
 
 if [ ${#missing[@]} -eq 0 ]; then
     exit 0

@@ -1,0 +1,98 @@
+// The page's wiring: upload → set detection → job → results, with a poll loop that
+// keeps the lists, the progress bars and the selected items current.
+import { api } from "./api.js";
+import { initBoard } from "./board.js";
+import { clearError, showError } from "./errors.js";
+import { renderJob, renderJobs } from "./jobs.js";
+import { hideResults, renderResults } from "./results.js";
+import { renderSet, renderSets } from "./sets.js";
+import { initMethods } from "./settings.js";
+import { initUpload } from "./upload.js";
+
+const POLL_MS = 1000;
+const state = { setId: null, jobId: null, shownJob: null, pending: null, sets: [] };
+
+async function submit({ form, method, settings }) {
+  clearError();
+  try {
+    const set = await api.createSet(form);
+    // the job is created once detection is done (the API refuses a set still detecting)
+    state.pending = { setId: set.id, method, settings };
+    selectSet(set.id);
+    if (set.state === "ready") await startPending(set);
+  } catch (e) { showError(e); }
+}
+
+async function startPending(set) {
+  const p = state.pending;
+  if (!p || p.setId !== set.id) return;
+  state.pending = null;
+  if (set.state !== "ready") {
+    showError(new Error(set.error || `detection ${set.state}: no calibration was started`));
+    return;
+  }
+  const job = await api.createJob({ set_id: set.id, method: p.method, settings: p.settings });
+  selectJob(job.id);
+}
+
+function selectSet(id) { state.setId = id; refresh(); }
+function selectJob(id) {
+  state.jobId = id;
+  state.shownJob = null;
+  hideResults();
+  refresh();
+}
+
+async function cancel(id) {
+  try { await api.cancelJob(id); refresh(); } catch (e) { showError(e); }
+}
+
+let busy = false;
+async function refresh() {
+  if (busy) return;
+  busy = true;
+  try {
+    const [sets, jobs] = await Promise.all([api.sets(), api.jobs()]);
+    state.sets = sets.sets;
+    renderSets(sets.sets, state.setId, selectSet);
+    renderJobs(jobs.jobs, state.jobId, selectJob);
+    let set = null;
+    if (state.setId) {
+      set = await api.set(state.setId);
+      renderSet(set);
+      if (state.pending && ["ready", "failed", "cancelled"].includes(set.state)) await startPending(set);
+    }
+    if (state.jobId) {
+      const job = await api.job(state.jobId);
+      renderJob(job, cancel);
+      if (job.state === "done" && state.shownJob !== job.id) {
+        state.shownJob = job.id;
+        if (job.set_id && job.set_id !== state.setId) { state.setId = job.set_id; set = await api.set(job.set_id); renderSet(set); }
+        await renderResults(job, set);
+      }
+    }
+  } catch (e) { showError(e); }
+  finally { busy = false; }
+}
+
+async function health() {
+  // a worker reports in a few seconds after start: keep this line current
+  try {
+    const h = await api.health();
+    document.getElementById("health").textContent = `service ${h.version} · ${h.workers} worker(s) · queue ${h.queue}`;
+  } catch { document.getElementById("health").textContent = "service unreachable"; }
+}
+
+async function init() {
+  initBoard();
+  initUpload(submit);
+  try {
+    initMethods(await api.methods());
+  } catch (e) { showError(e); }
+  await refresh();
+  setInterval(refresh, POLL_MS);
+  health();
+  setInterval(health, 5 * POLL_MS);
+}
+
+init();

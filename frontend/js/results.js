@@ -1,0 +1,56 @@
+// A done job's results: downloads, metrics tables, the 2-D figures and the 3D view.
+import { api } from "./api.js";
+import { el } from "./format.js";
+import { coverageFigure } from "./plots/coverage.js";
+import { fieldMapFigure, fieldVectorsFigure } from "./plots/field.js";
+import { heatmapFigure } from "./plots/heatmap.js";
+import { knotsFigure } from "./plots/knots.js";
+import { vectorsFigure } from "./plots/vectors.js";
+import { overallTable, viewsTable } from "./tables.js";
+import { renderViewer } from "./viewer.js";
+
+const LABELS = {
+  "calibration.json": "Calibration (JSON)", "opencv.yaml": "OpenCV YAML", "corner_residuals.csv": "Corner residuals (CSV)",
+  "corner_residuals.json": "Corner residuals (JSON)", "view_residuals.csv": "Per-view residuals (CSV)",
+  "view_residuals.json": "Per-view residuals (JSON)", "comparison.csv": "Comparison (CSV)", "comparison.json": "Comparison (JSON)",
+  "heatmap.json": "Heatmap (JSON)", "knots.json": "Knot grid (JSON)", "distortion_field.json": "Distortion field (JSON)",
+};
+
+export async function renderResults(job, set) {
+  const section = document.getElementById("results");
+  section.hidden = false;
+  const method = job.method === "compare" ? `compare (figures: ${job.summary.verdict || "none"})` : job.method;
+  document.getElementById("results-title").textContent = `3. Results of job ${job.id}: ${method}`;
+  renderDownloads(job.downloads);
+  const has = (n) => n in job.downloads;
+  const [comparison, views, corners, heatmap, field, knots] = await Promise.all([
+    api.file(job.id, "comparison.json"), has("view_residuals.json") ? api.file(job.id, "view_residuals.json") : [],
+    has("corner_residuals.json") ? api.file(job.id, "corner_residuals.json") : [],
+    has("heatmap.json") ? api.file(job.id, "heatmap.json") : null,
+    has("distortion_field.json") ? api.file(job.id, "distortion_field.json") : null,
+    has("knots.json") ? api.knotCells(job.id) : null,
+  ]);
+  const metrics = document.getElementById("metrics");
+  const who = job.method === "compare" ? ` (${job.summary.verdict})` : "";
+  metrics.replaceChildren(overallTable(comparison), views.length ? viewsTable(views, `Per view${who}`) : "");
+  const imageSize = heatmap ? heatmap.image_size : set && set.image_size;
+  const figs = [];
+  if (heatmap) figs.push(heatmapFigure({ heatmap, corners, views }));
+  if (corners.length) figs.push(vectorsFigure({ corners, views, set, imageSize }));
+  if (field) figs.push(fieldMapFigure({ field }), fieldVectorsFigure({ field }));
+  if (knots) figs.push(knotsFigure({ knots, imageSize }));
+  if (set && set.coverage && imageSize) figs.push(coverageFigure({ coverage: set.coverage, imageSize }));
+  const plots = document.getElementById("plots");
+  plots.replaceChildren(...figs);
+  plots.append(el("p", { class: "muted" }, "Uncertainty map: not computed by the service yet."));
+  await renderViewer(job);
+}
+
+function renderDownloads(downloads) {
+  const box = document.getElementById("downloads");
+  const order = Object.keys(LABELS).filter((n) => n in downloads).concat(Object.keys(downloads).filter((n) => !(n in LABELS)));
+  box.replaceChildren(el("strong", {}, "Download:"), ...order.map((n) =>
+    el("a", { href: downloads[n], download: "", "data-file": n }, LABELS[n] || n)));
+}
+
+export function hideResults() { document.getElementById("results").hidden = true; }

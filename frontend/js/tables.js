@@ -1,0 +1,41 @@
+// The metrics tables: overall (one row per method when comparing) and per view.
+import { el, num, px } from "./format.js";
+
+const OVERALL = [
+  ["rmse", "rmse [px]", px], ["rmse_axis", "rmse per axis [px]", px],
+  ["rmse_center", "centre rmse [px]", px], ["rmse_edge", "edge rmse [px]", px],
+  ["cv_validation_rmse", "hold-out views rmse (CV) [px]", px], ["holdout_rmse", "hold-out set rmse [px]", px],
+  ["n_points", "points", num], ["n_params", "parameters", num], ["seconds", "fit time [s]", (x) => num(x, 2)],
+];
+
+/** comparison.json of a single job ({rows}) or of a compare job ({methods, verdict}) → rows. */
+export function comparisonRows(doc) {
+  if (Array.isArray(doc.rows)) return doc.rows;
+  return Object.entries(doc.methods || {}).map(([method, r]) => ({ method, ...r }));
+}
+
+export function overallTable(doc) {
+  const rows = comparisonRows(doc);
+  const cols = OVERALL.filter(([k]) => rows.some((r) => r[k] != null));
+  const best = doc.verdict;
+  const table = el("table", { id: "metrics-overall" },
+    el("caption", {}, rows.length > 1 ? `All methods${best ? ` (verdict: ${best}, lowest cross-validated rmse)` : ""}`
+      : "Overall"),
+    el("thead", {}, el("tr", {}, el("th", { scope: "col" }, "method"), cols.map(([, label]) => el("th", { scope: "col" }, label)))),
+    el("tbody", {}, rows.map((r) => el("tr", { class: r.method === best ? "best" : "" },
+      el("th", { scope: "row" }, r.method),
+      r.error ? el("td", { colspan: cols.length }, r.error) : cols.map(([k, , f]) => el("td", {}, f(r[k])))))));
+  const note = el("p", { class: "muted" }, "rmse: per-point Euclidean RMS (OpenCV's figure); per axis: RMS of x and y " +
+    "components (mrcal's). Centre: corners in the middle half of the image. CV: each view held out once, model fixed, pose refit.");
+  return el("div", { class: "table-wrap" }, table, note);
+}
+
+export function viewsTable(views, title) {
+  const table = el("table", { id: "metrics-views" },
+    el("caption", {}, title),
+    el("thead", {}, el("tr", {}, ["view", "points", "rmse [px]", "rmse per axis [px]", "max error [px]", "outliers"]
+      .map((h) => el("th", { scope: "col" }, h)))),
+    el("tbody", {}, views.map((v) => el("tr", {}, el("th", { scope: "row" }, v.view), el("td", {}, num(v.n_points)),
+      el("td", {}, px(v.rmse)), el("td", {}, px(v.rmse_axis)), el("td", {}, px(v.max_error)), el("td", {}, num(v.outliers))))));
+  return el("div", { class: "table-wrap scroll-y" }, table);
+}

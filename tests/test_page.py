@@ -1,0 +1,151 @@
+"""The page and the 3D view in a real browser: Debian's Chromium, headless, driven by Playwright.
+
+One walk through what a user does, against `freecal serve` (API + worker + viser)
+in a subprocess: upload OpenCV's left stereo images, watch detection and the
+job, read the metrics and a heatmap (with its tooltip), download the
+calibration and validate it, open the 3D view and check the scene's nodes
+(server side: labels are drawn in the canvas). Screenshots of each step go to
+test-artifacts/page/ at 1366x768, and the results also at 1920x1080.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from calib_core import Calibration
+
+from .conftest import ROOT, shared_data
+from .test_service_harness import FAST, Service, wait_for
+
+pytestmark = pytest.mark.slow
+
+CHROMIUM = "/usr/bin/chromium"
+ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox", "--disable-background-networking",
+        "--disable-component-update", "--disable-sync", "--no-first-run"]
+SHOTS = ROOT / "test-artifacts" / "page"
+# a quick B-spline fit: the page test is about the page, not the method
+SETTINGS = {"knots": "uniform", "intervals": "5x4", "lambda_smooth": "0.1", "max_iterations": "30"}
+
+
+@pytest.fixture(scope="module")
+def browser():
+    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is in the test extra: make test")
+    if not os.access(CHROMIUM, os.X_OK):
+        pytest.skip(f"{CHROMIUM} is missing: `make test` installs Debian's chromium (apt-get, as root)")
+    with sync_api.sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+        yield b
+        b.close()
+
+
+@pytest.fixture(scope="module")
+def service(tmp_path_factory):
+    root = tmp_path_factory.mktemp("page")
+    svc = Service(root / "data", root, {**FAST, "FREECAL_VIEWER_PORT": "0"}).start()
+    yield svc
+    svc.stop()
+
+
+@pytest.fixture(scope="module")
+def shots():
+    shutil.rmtree(SHOTS, ignore_errors=True)
+    SHOTS.mkdir(parents=True)
+    return SHOTS
+
+
+def test_upload_watch_review_download_and_3d(browser, service, shots):
+    images = sorted(shared_data("opencv-stereo-9x6").glob("left*.jpg"))
+    base = f"http://127.0.0.1:{service.port}"
+    page = browser.new_page(viewport={"width": 1366, "height": 768}, accept_downloads=True)
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(base + "/")
+    page.wait_for_selector("#method option[value=bspline]", state="attached")
+    page.screenshot(path=shots / "01-upload.png")
+
+    # an error from the API reaches the user as the API's own message
+    page.click("#submit")
+    page.wait_for_selector("#error:not([hidden])")
+    assert "files" in page.text_content("#error")
+
+    page.set_input_files("#files", [str(p) for p in images])
+    page.select_option("#method", "bspline")
+    page.click("#settings summary")
+    for key, value in SETTINGS.items():
+        if page.eval_on_selector(f"#setting-{key}", "e => e.tagName") == "SELECT":
+            page.select_option(f"#setting-{key}", value)
+        else:
+            page.fill(f"#setting-{key}", value)
+    page.screenshot(path=shots / "02-filled.png")
+    page.click("#submit")
+
+    page.wait_for_function("document.querySelector('#set-progress-label').textContent.startsWith('ready')",
+                           timeout=90_000)
+    thumbs = page.locator("#images li")
+    assert thumbs.count() == len(images)
+    assert page.locator("#images li.used").count() >= len(images) - 2
+    page.wait_for_selector("#job-detail:not([hidden])", timeout=30_000)
+    page.screenshot(path=shots / "03-detection-and-job.png")
+
+    page.wait_for_selector("#metrics-overall", timeout=120_000)
+    page.wait_for_selector("#fig-heatmap canvas")
+    assert "px" in page.text_content("#metrics-overall")
+    rmse_cell = page.text_content("#metrics-overall tbody td")
+    assert rmse_cell.endswith(" px") and 0 < float(rmse_cell.split()[0]) < 1.5
+    assert page.locator("#metrics-views tbody tr").count() >= len(images) - 2
+    # the heatmap is drawn (many colours), and hovering it tells a value with its unit
+    colours = page.eval_on_selector("#fig-heatmap canvas", """c => {
+        const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data, seen = new Set();
+        for (let i = 0; i < d.length; i += 4 * 37) seen.add(d[i] + ',' + d[i+1] + ',' + d[i+2]);
+        return seen.size; }""")
+    assert colours > 20
+    page.locator("#fig-heatmap").scroll_into_view_if_needed()
+    box = page.locator("#fig-heatmap canvas").bounding_box()
+    page.mouse.move(box["x"] + box["width"] * 0.45, box["y"] + box["height"] * 0.45)
+    page.wait_for_selector("#tooltip:not([hidden])")
+    assert "px" in page.text_content("#tooltip")
+    for fig in ("#fig-vectors", "#fig-field", "#fig-field-vectors", "#fig-knots", "#fig-coverage"):
+        assert page.locator(fig).count() == 1, fig
+    page.screenshot(path=shots / "04-results.png")
+    page.screenshot(path=shots / "05-results-full.png", full_page=True)
+
+    with page.expect_download() as dl:
+        page.click("#downloads a[data-file='calibration.json']")
+    doc = json.loads(Path(dl.value.path()).read_text())
+    cal = Calibration.from_json(doc)
+    assert cal.method == "bspline" and len(cal.views) >= len(images) - 2
+
+    # the 3D view: embedded, and its scene (server side) holds the job's objects
+    page.click("#open-3d")
+    frame = page.wait_for_selector("iframe.viewer-frame")
+    frame.scroll_into_view_if_needed()
+    job_id = page.text_content("#results-title").split("job ")[1].split(":")[0]
+
+    def scene():
+        clients = service.client.get("/api/viewer").json()["clients"]
+        return next((c for c in clients if c["job_id"] == job_id and c["nodes"]), None)
+
+    shown = wait_for(scene, 60, "the 3D view to connect and draw the job", service.logs())
+    nodes = set(shown["nodes"])
+    for name in ("/cameras/0/frustum", "/image_plane/knots", "/residuals/vectors", "/field/dx", "/field/dy"):
+        assert name in nodes, name
+    boards = {n.split("/")[2] for n in nodes if n.startswith("/boards/") and n.endswith("/corners")}
+    assert len(boards) == len(cal.views)
+    page.wait_for_timeout(4000)  # let WebGL (SwiftShader) draw a few frames before the screenshot
+    notice = frame.content_frame().locator("[class*=Notification] button")  # viser's software-WebGL notice
+    if notice.count():
+        notice.first.click()
+    page.screenshot(path=shots / "06-viewer.png")
+
+    wide = browser.new_page(viewport={"width": 1920, "height": 1080})
+    wide.goto(base + "/")
+    wide.click(f"#jobs button[aria-label^='job {job_id}']")
+    wide.wait_for_selector("#fig-heatmap canvas", timeout=30_000)
+    wide.screenshot(path=shots / "07-results-1920.png")
+    wide.close()
+    page.close()
+    assert not errors, errors

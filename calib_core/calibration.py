@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from . import camera
+from . import camera, unproject
 from .errors import FormatError
 from .models import MODEL_TYPES, CameraModel
 from .observations import read_json, write_json
@@ -65,15 +65,19 @@ class Calibration:
 
     def undistort_points(self, uv: np.ndarray) -> np.ndarray:
         """Observed pixels (N, 2) → ideal pinhole pixels (N, 2), by Newton's method
-        to 1e-9 px in the image; NaN where the ray is 90° or more off axis."""
+        to 1e-9 px in the image (principal branch, see ``rays``); NaN where the
+        ray is 90° or more off axis."""
         rays = self.rays(uv)
         with np.errstate(divide="ignore", invalid="ignore"):
             xn = np.where(rays[:, 2:] > 0, rays[:, :2] / rays[:, 2:], np.nan)
         return self.model.ideal_pixel(xn)
 
     def rays(self, uv: np.ndarray) -> np.ndarray:
-        """Unit rays (N, 3) in the camera frame of observed pixels (N, 2)."""
-        return self.model.rays(np.asarray(uv, dtype=np.float64).reshape(-1, 2))
+        """Unit rays (N, 3) in the camera frame of observed pixels (N, 2), on the
+        lens's principal branch (``unproject.py``: wide models fold back, and a
+        plain Newton start can land on the folded sheet); NaN where none."""
+        xn = unproject.normalised_of_pixel(self.model, np.asarray(uv, dtype=np.float64).reshape(-1, 2))
+        return camera.ray_of(xn, self.model.base)
 
     def view(self, name: str) -> ViewResult:
         for v in self.views:

@@ -22,7 +22,7 @@ from typing import Any, Callable
 import numpy as np
 from scipy.spatial import cKDTree
 
-from . import metrics
+from . import metrics, quality
 from .calibration import Calibration
 from .errors import CalibError, DataError, SettingsError
 from .init import poses_from_rays
@@ -151,6 +151,7 @@ def compare(observations: Observations, methods: list[str] | None = None, splits
         raise DataError("the hold-out views come from a camera with another image_size")
     progress = progress or (lambda stage, fraction: None)
     out: dict[str, Any] = {"methods": {}, "n_views": n_views, "n_points": observations.n_points, "splits": splits}
+    out["quality_raw"] = _quality(quality.raw_quality, observations)
     cv_residuals = {}
     for i, name in enumerate(methods):
         progress(name, i / len(methods))
@@ -161,6 +162,7 @@ def compare(observations: Observations, methods: list[str] | None = None, splits
             entry["views"] = [{"name": v.name, "rmse": v.rmse, "rmse_axis": v.rmse_axis, "n_points": v.n_points}
                               for v in cal.views]
             entry["n_params"] = int(cal.model.n_params)
+            entry["quality"] = _quality(quality.geometric_quality, cal, observations)  # paper Table 7
             if holdout is not None:
                 r, data = validation_residuals(cal, holdout)
                 s = metrics.summary(r, data.image_points, holdout.image_size)
@@ -176,6 +178,14 @@ def compare(observations: Observations, methods: list[str] | None = None, splits
     out["verdict"], out["verdict_detail"] = _verdict(out["methods"], cv_residuals)
     progress("done", 1.0)
     return out
+
+
+def _quality(fn: Callable[..., dict[str, Any]], *args) -> dict[str, Any]:
+    """Table 7's metrics (``quality.py``), or why they cannot be measured on these boards."""
+    try:
+        return fn(*args)
+    except CalibError as exc:
+        return {"error": str(exc)}
 
 
 def _verdict(results: dict[str, dict], cv_residuals: dict) -> tuple[str | None, dict[str, Any]]:

@@ -64,6 +64,7 @@ def print_tables(result: dict) -> None:
         table(["method", "rmse", "rmse_axis", "centre", "edge"],
               [[m, ms[m]["holdout_rmse"], ms[m]["holdout_rmse_axis"], ms[m]["holdout_rmse_center"], ms[m]["holdout_rmse_edge"]]
                for m in ok])
+    print_quality(result)
     for m in ms:
         if "error" in ms[m]:
             print(f"\n{m}: could not calibrate: {ms[m]['error']}")
@@ -74,3 +75,18 @@ def print_tables(result: dict) -> None:
         state = "still show spatial structure" if s["structured"] else "show no spatial structure"
         print(f"Its validation residuals {state}: neighbour correlation rho = {s['rho']:.3f}, "
               f"p = {s['p_value']:.3f} ({s['n_pairs']} neighbour pairs)")
+
+
+def print_quality(result: dict) -> None:
+    """Table 7: the boards' geometry after each method's rectification (calib_core/quality.py)."""
+    ms = result["methods"]
+    rows = [("raw image", result.get("quality_raw", {}))] + [(m, ms[m].get("quality", {})) for m in ms if "error" not in ms[m]]
+    rows = [(name, q) for name, q in rows if q and "error" not in q]
+    if not rows:
+        return
+    from calib_core.quality import METRICS
+
+    print("\nRectification quality on the boards (paper Table 7; straightness in rectified px, "
+          "orthogonality in degrees, smoothness: mean |Hessian| of the distortion field [1/px])")
+    table(["method"] + [label for _, label in METRICS], [[name] + [float("nan") if q.get(k) is None else q[k] for k, _ in METRICS]
+                                                         for name, q in rows])

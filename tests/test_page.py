@@ -108,6 +108,7 @@ def test_upload_watch_review_download_and_3d(browser, service, shots):
     page.mouse.move(box["x"] + box["width"] * 0.45, box["y"] + box["height"] * 0.45)
     page.wait_for_selector("#tooltip:not([hidden])")
     assert "px" in page.text_content("#tooltip")
+    page.wait_for_selector("#fig-uncertainty", timeout=30_000)
     for fig in ("#fig-vectors", "#fig-field", "#fig-field-vectors", "#fig-knots", "#fig-coverage"):
         assert page.locator(fig).count() == 1, fig
     page.screenshot(path=shots / "04-results.png")

@@ -35,6 +35,7 @@ export const api = {
   cancelJob: (id) => request("POST", `/api/jobs/${id}/cancel`),
   file: (id, name) => request("GET", `/api/jobs/${id}/${name}`),
   knotCells: (id) => request("GET", `/api/jobs/${id}/figures/knot-cells`),
+  uncertainty: (id) => request("GET", `/api/jobs/${id}/figures/uncertainty`),
   viewer: () => request("GET", "/api/viewer"),
   openViewer: (jobId) => request("POST", "/api/viewer", { job_id: jobId }),
 };

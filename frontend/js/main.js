@@ -32,6 +32,7 @@ async function startPending(set) {
     return;
   }
   const job = await api.createJob({ set_id: set.id, method: p.method, settings: p.settings });
+  state.scrollTo = job.id;   // the user asked for this one: show its results when they come
   selectJob(job.id);
 }
 
@@ -69,6 +70,7 @@ async function refresh() {
         state.shownJob = job.id;
         if (job.set_id && job.set_id !== state.setId) { state.setId = job.set_id; set = await api.set(job.set_id); renderSet(set); }
         await renderResults(job, set);
+        if (state.scrollTo === job.id) document.getElementById("results").scrollIntoView({ behavior: "smooth" });
       }
     }
   } catch (e) { showError(e); }

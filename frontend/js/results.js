@@ -5,6 +5,7 @@ import { coverageFigure } from "./plots/coverage.js";
 import { fieldMapFigure, fieldVectorsFigure } from "./plots/field.js";
 import { heatmapFigure } from "./plots/heatmap.js";
 import { knotsFigure } from "./plots/knots.js";
+import { uncertaintyFigure } from "./plots/uncertainty.js";
 import { vectorsFigure } from "./plots/vectors.js";
 import { overallTable, viewsTable } from "./tables.js";
 import { renderViewer } from "./viewer.js";
@@ -42,8 +43,10 @@ export async function renderResults(job, set) {
   if (set && set.coverage && imageSize) figs.push(coverageFigure({ coverage: set.coverage, imageSize }));
   const plots = document.getElementById("plots");
   plots.replaceChildren(...figs);
-  plots.append(el("p", { class: "muted" }, "Uncertainty map: not computed by the service yet."));
   await renderViewer(job);
+  // computed on request (about a second): drawn last, and its failure is a note, not an error
+  try { plots.append(uncertaintyFigure({ unc: await api.uncertainty(job.id) })); }
+  catch (e) { plots.append(el("p", { class: "muted" }, `Uncertainty map not available: ${e.message}`)); }
 }
 
 function renderDownloads(downloads) {

@@ -8,8 +8,15 @@ const WIDTH = 620;   // logical canvas width (CSS scales it to the column)
 /** A <figure> with a caption (and optional controls) holding one canvas. */
 export function figure(title, { note, controls = [], label } = {}) {
   const canvas = el("canvas", { role: "img", "aria-label": label || title });
+  const zoom = el("button", { type: "button", class: "zoom", "aria-pressed": "false", title: "show this figure across the page" },
+    "Enlarge");
   const fig = el("figure", { class: "plot" },
-    el("figcaption", {}, el("span", {}, title), ...controls), canvas, note ? el("p", { class: "note" }, note) : null);
+    el("figcaption", {}, el("span", {}, title), ...controls, zoom), canvas, note ? el("p", { class: "note" }, note) : null);
+  zoom.addEventListener("click", () => {
+    const wide = fig.classList.toggle("wide");
+    zoom.textContent = wide ? "Smaller" : "Enlarge";
+    zoom.setAttribute("aria-pressed", String(wide));
+  });
   return { fig, canvas };
 }
 
@@ -27,7 +34,8 @@ export class ImagePlot {
     const [u0, u1, v0, v1] = domain;
     this.pw = WIDTH - M.left - M.right;
     this.ph = Math.round(this.pw * (v1 - v0) / (u1 - u0));
-    const dpr = Math.max(1, window.devicePixelRatio || 1);
+    // twice the screen's density: the figure stays sharp when enlarged to the page's width
+    const dpr = 2 * Math.max(1, window.devicePixelRatio || 1);
     canvas.width = WIDTH * dpr; canvas.height = (this.ph + M.top + M.bottom) * dpr;
     canvas.style.aspectRatio = `${WIDTH} / ${this.ph + M.top + M.bottom}`;
     this.ctx = canvas.getContext("2d");

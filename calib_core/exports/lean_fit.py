@@ -102,7 +102,17 @@ def fit_lean(cal: Calibration, name: str, grid: tuple[int, int] = GRID, covered:
         k = cal.model.intrinsics.copy()
         k[4] = 0.0  # OpenCV's models have no skew
         start = OpenCVModel(k, np.zeros(n)) if kind == "opencv" else FisheyeModel(k, np.zeros(n))
-        model, exact = _fit(start, rays[ok], target[ok], name), False
+        candidates = [_fit(start, rays[ok], target[ok], name)]
+        if kind == "opencv" and n > 5:
+            # Also a nested start: from zero the rational denominator can wander into a poor
+            # minimum, and the 5-coefficient fit padded with zeros is sometimes far better
+            # (and sometimes worse): keep whichever fits best.
+            five = _fit(OpenCVModel(k, np.zeros(5)), rays[ok], target[ok], name)
+            padded = OpenCVModel(five.intrinsics, np.concatenate([five.coefficients, np.zeros(n - 5)]))
+            candidates.append(_fit(padded, rays[ok], target[ok], name))
+        with np.errstate(all="ignore"):
+            cost = [np.nansum((m.project(rays[ok]) - target[ok]) ** 2) for m in candidates]
+        model, exact = candidates[int(np.nanargmin(cost))], False
     err = np.full(len(target), np.nan)
     with np.errstate(all="ignore"):
         err[ok] = np.linalg.norm(model.project(rays[ok]) - target[ok], axis=1)

@@ -19,7 +19,7 @@ ROS_MODELS = {"opencv5": "plumb_bob", "opencv8": "rational_polynomial", "kb4": "
 
 def _matrix(name: str, m: np.ndarray) -> str:
     rows, cols = m.shape
-    data = ", ".join(f"{float(x):.10g}" for x in m.ravel())
+    data = ", ".join(f"{float(x):.17g}" for x in m.ravel())
     return f"{name}:\n  rows: {rows}\n  cols: {cols}\n  data: [{data}]\n"
 
 

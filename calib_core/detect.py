@@ -128,14 +128,20 @@ def _run_all(files, names, board, progress, workers) -> list[ImageResult]:
 
 
 def _context():
-    """fork for a single-threaded caller (no re-import of an unguarded ``__main__`` script);
-    forkserver for a threaded one such as the web service, where fork could inherit held locks."""
-    import threading
+    """forkserver where there is one, preloaded with the detector; else spawn.
 
+    Never fork: once this process has run any parallel OpenCV call (an imwrite, a blur),
+    a forked child inherits OpenCV's thread pool without its threads, and its first
+    ``cv2.setNumThreads`` waits forever on the pool's condition variable (seen: the
+    test suite hung). The fork server is a fresh interpreter that imported OpenCV but
+    never ran it, so workers start in milliseconds and clean.
+    """
     methods = mp.get_all_start_methods()
-    if "fork" in methods and threading.active_count() == 1:
-        return mp.get_context("fork")
-    return mp.get_context("forkserver" if "forkserver" in methods else "spawn")
+    if "forkserver" in methods:
+        ctx = mp.get_context("forkserver")
+        ctx.set_forkserver_preload(["calib_core.detect_image"])
+        return ctx
+    return mp.get_context("spawn")
 
 
 def _init_worker() -> None:

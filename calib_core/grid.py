@@ -12,6 +12,13 @@ itself can tell:
   picks between 180° rotations of a full board and fixes the parity of a
   partial grid's offset.
 
+- lattice stride: on steep views ``CALIB_CB_LARGER`` can grow a grid that steps
+  over every other line of the board in one direction (seen on 2 of the 25
+  BabelCalib fisheye views). Its corners are real but its cells hold two
+  squares, so half its quarter-cell samples fall on the wrong colour. Such a
+  grid is expanded to the board's own lattice (the skipped corners are
+  interpolated only to place it, and are not returned).
+
 What stays unknown for a partial plain chessboard is *where* on the board the
 patch lies: it is placed at the board's top-left (offset 0 or 1 for parity).
 Its ids and object points are then consistent within the view (the pose
@@ -55,14 +62,72 @@ def cell_brightness_sign(grid: np.ndarray, gray: np.ndarray) -> int:
     return 0 if abs(d) < 8 else (1 if d > 0 else -1)
 
 
+def _sample(gray: np.ndarray, grid: np.ndarray, s: float, t: float) -> np.ndarray:
+    """Grey levels (h-1, w-1) at cell coordinates (s along a row, t down a column) of every
+    cell of grid (h, w, 2), bilinear between the cell's four corners."""
+    p = ((1 - s) * (1 - t) * grid[:-1, :-1] + s * (1 - t) * grid[:-1, 1:]
+         + (1 - s) * t * grid[1:, :-1] + s * t * grid[1:, 1:]).astype(np.float32)
+    return cv2.remap(gray, p[..., 0], p[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
+
+
+def lattice_strides(grid: np.ndarray, gray: np.ndarray) -> tuple[int, int]:
+    """(row stride, column stride), 1 or 2, in board squares per grid cell of grid (h, w, 2).
+
+    A true cell is one square: its quarter points share a colour. A cell two squares
+    long in a direction has its quarter points along it on opposite colours.
+    """
+    h, w = grid.shape[:2]
+    if h < 2 or w < 2:
+        return 1, 1
+    q = {(s, t): _sample(gray, grid, s, t) for s in (0.25, 0.5, 0.75) for t in (0.25, 0.5, 0.75)}
+    allv = np.concatenate([v.ravel() for v in q.values()])
+    contrast = np.percentile(allv, 90) - np.percentile(allv, 10)
+    if contrast < 16:
+        return 1, 1
+    along_row = np.median(np.abs(q[0.25, 0.5] - q[0.75, 0.5]))   # across a cell's width
+    down_col = np.median(np.abs(q[0.5, 0.25] - q[0.5, 0.75]))    # across a cell's height
+    # Medians: the tags and markers of tagged boards fill a minority of cells.
+    return (2 if down_col > 0.5 * contrast else 1), (2 if along_row > 0.5 * contrast else 1)
+
+
+def expand(grid: np.ndarray, sr: int, sc: int) -> tuple[np.ndarray, np.ndarray]:
+    """Grid (h, w, 2) with sr-1 / sc-1 interpolated lines inserted between rows / columns:
+    ((h-1)*sr+1, (w-1)*sc+1, 2), and the mask of its detected (not inserted) corners."""
+    h, w = grid.shape[:2]
+    ri = np.arange((h - 1) * sr + 1) / sr
+    ci = np.arange((w - 1) * sc + 1) / sc
+    r0, c0 = np.minimum(ri.astype(int), h - 2), np.minimum(ci.astype(int), w - 2)
+    fr, fc = (ri - r0)[:, None, None], (ci - c0)[None, :, None]
+    g00, g01 = grid[r0][:, c0], grid[r0][:, c0 + 1]
+    g10, g11 = grid[r0 + 1][:, c0], grid[r0 + 1][:, c0 + 1]
+    full = (1 - fr) * (1 - fc) * g00 + (1 - fr) * fc * g01 + fr * (1 - fc) * g10 + fr * fc * g11
+    real = np.zeros(full.shape[:2], bool)
+    real[::sr, ::sc] = True
+    return full, real
+
+
 def place_grid(grid: np.ndarray, cols: int, rows: int, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """Ids (N,) and pixels (N, 2) of a detected grid (h, w, 2) on a cols × rows board.
 
     None when the grid fits the board in no orientation (a detector that ran
     past the board's edge).
     """
+    sr, sc = lattice_strides(grid, gray)
+    if (sr, sc) != (1, 1):
+        full, real = expand(grid, sr, sc)
+        placed = _place(np.concatenate([full, real[..., None]], -1), cols, rows, gray)
+        if placed is None:
+            return None
+        ids, pts = placed
+        keep = pts[:, 2] > 0.5
+        return ids[keep], pts[keep, :2]
+    return _place(grid, cols, rows, gray)
+
+
+def _place(grid: np.ndarray, cols: int, rows: int, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """place_grid on a one-square lattice (h, w, C): channels beyond x, y ride along."""
     grid = right_handed(grid)
-    sign = cell_brightness_sign(grid, gray)
+    sign = cell_brightness_sign(grid[..., :2], gray)
     H, W = grid.shape[:2]
     cell_parity = np.indices((max(H - 1, 1), max(W - 1, 1))).sum(0) % 2  # (H-1, W-1)
     for k in (0, 2, 1, 3):  # prefer the detector's own orientation, then its 180° turn
@@ -83,12 +148,12 @@ def place_grid(grid: np.ndarray, cols: int, rows: int, gray: np.ndarray) -> tupl
                 continue  # a full-size grid with the wrong colour: try the other turn
         r, c = np.indices((h, w))
         ids = ((r + r0) * cols + (c + c0)).ravel()
-        return ids, g.reshape(-1, 2).astype(np.float64)
+        return ids, g.reshape(h * w, -1).astype(np.float64)
     if sign != 0:  # colours ambiguous or misread: place it anyway rather than lose the view
         for k in (0, 1):
             g = np.rot90(grid, k, axes=(0, 1))
             h, w = g.shape[:2]
             if h <= rows and w <= cols:
                 r, c = np.indices((h, w))
-                return (r * cols + c).ravel(), g.reshape(-1, 2).astype(np.float64)
+                return (r * cols + c).ravel(), g.reshape(h * w, -1).astype(np.float64)
     return None

@@ -94,6 +94,6 @@ def test_babelcalib_fisheye_partial_boards_match_reference():
     d = np.concatenate(dists)
     assert np.mean(d < 0.5) >= 0.95, f"only {np.mean(d < 0.5):.1%} of corners within 0.5 px of the reference"
     assert np.median(d) < 0.3
-    # The grid should be one consistent lattice in every view. Known gap (issue #4 follow-up):
-    # in a few views the LARGER grid's corner order is not one lattice; guard today's level.
-    assert sum(x > 0.99 for x in lattice_ok) >= 18, np.round(lattice_ok, 2)
+    # One consistent lattice in every view, including the two steep views where LARGER grows
+    # a grid over every other board row (grid.lattice_strides); before that fix 15-22 %.
+    assert min(lattice_ok) >= 0.98, np.round(lattice_ok, 2)

@@ -15,7 +15,14 @@ from .conftest import synthetic
 
 @pytest.fixture(scope="module")
 def calibration():
-    return calibrate(synthetic("asymmetric").train, "bspline")
+    """The paper's model (a field on ideal pixels, no parametric core)."""
+    return calibrate(synthetic("asymmetric").train, "bspline", core="none", intervals=8, lambda_smooth=100.0)
+
+
+@pytest.fixture(scope="module")
+def hybrid():
+    """A field over OpenCV's rational core (formats.md 'hybrid')."""
+    return calibrate(synthetic("radial").train, "bspline", core="rational", intervals=6, lambda_smooth=300.0)
 
 
 def project_with_scipy_only(doc, view, points):
@@ -41,6 +48,29 @@ def test_saved_calibration_projects_identically_with_scipy_alone(calibration, tm
         pts = synthetic("asymmetric").train.view(view_doc["name"]).object_points
         ours = calibration.project(pts, view_doc["rvec"], view_doc["tvec"])
         assert np.max(np.abs(ours - project_with_scipy_only(doc, view_doc, pts))) < 1e-9
+
+
+def test_saved_hybrid_projects_identically_with_opencv_and_scipy(hybrid, tmp_path):
+    """formats.md 'hybrid': cv2.projectPoints for the core, NdBSpline at its pixel."""
+    import cv2
+
+    path = tmp_path / "hybrid.json"
+    hybrid.save(path)
+    doc = json.loads(path.read_text())
+    d, k = doc["distortion"], doc["intrinsics"]
+    assert d["type"] == "hybrid" and d["core"]["type"] == "opencv" and doc["base"] == "pinhole"
+    camera_matrix = np.array([[k["fx"], 0, k["cx"]], [0, k["fy"], k["cy"]], [0, 0, 1.0]])
+    field = d["field"]
+    knots = (np.array(field["knots_u"]), np.array(field["knots_v"]))
+    for view_doc in doc["views"][:3]:
+        pts = synthetic("radial").train.view(view_doc["name"]).object_points
+        core, _ = cv2.projectPoints(pts, np.array(view_doc["rvec"]), np.array(view_doc["tvec"]), camera_matrix,
+                                    np.array(d["core"]["coefficients"]))
+        p = core.reshape(-1, 2)
+        expected = p + np.column_stack([NdBSpline(knots, np.array(field["control_x"]), 3)(p),
+                                        NdBSpline(knots, np.array(field["control_y"]), 3)(p)])
+        ours = hybrid.project(pts, view_doc["rvec"], view_doc["tvec"])
+        assert np.max(np.abs(ours - expected)) < 1e-8
 
 
 def test_calibration_round_trip(calibration, tmp_path):

@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from .board import BoardSpec
-from .grid import place_grid
+from .grid import expand, gap_strides, lattice_score, place_grid
 
 MIN_CORNERS = 6            # fewer cannot constrain a view's pose and the lens together
 MAX_EDGE_WIDTH = 8.0       # px, black-to-white transition; OpenCV calls < 3 sharp
@@ -25,6 +25,8 @@ REDUCED_PIXELS = 3e6       # ... of about this many pixels, refine at full resol
 MAX_REFINE_SHIFT = 1.0    # px a final cornerSubPix may move a detector's corner
 SB_FLAGS = cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
 CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+MIN_LATTICE_SCORE = 0.8   # share of grid cells that must read as one checker square
+SEEDS = (4, 5, 3)          # seed grid sizes for partial boards, tried in turn (see _grown_grid)
 SUBPIX = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 40, 1e-3)
 
 
@@ -136,11 +138,7 @@ def _chessboard(gray: np.ndarray, board: BoardSpec):
             corners = cv2.cornerSubPix(gray, corners.astype(np.float32), (half, half), (-1, -1), SUBPIX)
             grid = corners.reshape(rows, cols, 2)
     if grid is None:
-        # Partial board: grow a grid from a small seed over whatever is visible.
-        seed = (min(4, cols), min(4, rows))
-        ok, corners, meta = cv2.findChessboardCornersSBWithMeta(gray, seed, SB_FLAGS | cv2.CALIB_CB_LARGER)
-        if ok and meta is not None and meta.size == corners.shape[0]:
-            grid = corners.reshape(*meta.shape, 2)
+        grid = _grown_grid(gray, cols, rows)
     if grid is None:
         return None, None, None, "board not found"
     placed = place_grid(grid.astype(np.float64), cols, rows, gray)
@@ -149,6 +147,30 @@ def _chessboard(gray: np.ndarray, board: BoardSpec):
                                   f"is larger than the board ({cols}x{rows}); check --board")
     sharp = _edge_width(gray, grid)
     return placed[0], placed[1], sharp, ""
+
+
+def _grown_grid(gray: np.ndarray, cols: int, rows: int) -> np.ndarray | None:
+    """Partial board: a grid (h, w, 2) grown from a small seed over whatever is visible.
+
+    The grown grid depends on the seed size, and some seeds grow a grid that is not the
+    board's lattice (rows skipping a varying number of board lines, or an axis running
+    diagonally; seen on rendered views with exact corners). The next seed is tried until
+    the grid, expanded to one square per cell, reads as a chessboard (``lattice_score``);
+    if none does, the board is not found rather than given wrong ids.
+    """
+    for n in SEEDS:
+        seed = (min(n, cols), min(n, rows))
+        cv2.setRNGSeed(0x5EED)
+        ok, corners, meta = cv2.findChessboardCornersSBWithMeta(gray, seed, SB_FLAGS | cv2.CALIB_CB_LARGER)
+        if not (ok and meta is not None and meta.size == corners.shape[0]):
+            continue
+        grid = corners.reshape(*meta.shape, 2).astype(np.float64)
+        sr, sc = gap_strides(grid, gray)
+        if (sr == 0).any() or (sc == 0).any():
+            continue
+        if lattice_score(expand(grid, sr, sc)[0], gray) >= MIN_LATTICE_SCORE:
+            return grid
+    return None
 
 
 def _edge_width(gray: np.ndarray, grid: np.ndarray) -> float | None:

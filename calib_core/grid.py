@@ -13,11 +13,13 @@ itself can tell:
   partial grid's offset.
 
 - lattice stride: on steep views ``CALIB_CB_LARGER`` can grow a grid that steps
-  over every other line of the board in one direction (seen on 2 of the 25
-  BabelCalib fisheye views). Its corners are real but its cells hold two
-  squares, so half its quarter-cell samples fall on the wrong colour. Such a
-  grid is expanded to the board's own lattice (the skipped corners are
-  interpolated only to place it, and are not returned).
+  over every other line of the board (seen on 2 of the 25 BabelCalib fisheye
+  views, all rows; on rendered fisheye views, some rows). Its corners are real
+  but those cells hold two squares, so their quarter-cell samples fall on
+  opposite colours. Such a grid is expanded to the board's own lattice (the
+  skipped corners are interpolated only to place it, and are not returned);
+  gaps that read as neither one nor two squares (a grid grown into a grazing
+  horizon) cut the grid, and its largest clean block is kept.
 
 What stays unknown for a partial plain chessboard is *where* on the board the
 patch lies: it is placed at the board's top-left (offset 0 or 1 for parity).
@@ -70,39 +72,81 @@ def _sample(gray: np.ndarray, grid: np.ndarray, s: float, t: float) -> np.ndarra
     return cv2.remap(gray, p[..., 0], p[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
 
 
-def lattice_strides(grid: np.ndarray, gray: np.ndarray) -> tuple[int, int]:
-    """(row stride, column stride), 1 or 2, in board squares per grid cell of grid (h, w, 2).
+def gap_strides(grid: np.ndarray, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Board squares spanned by each row gap (h-1,) and column gap (w-1,) of grid (h, w, 2):
+    1, 2, or 0 where the cells are unreadable (a grid grown into a grazing horizon).
 
     A true cell is one square: its quarter points share a colour. A cell two squares
     long in a direction has its quarter points along it on opposite colours.
     """
     h, w = grid.shape[:2]
+    ones = np.ones(max(h - 1, 0), int), np.ones(max(w - 1, 0), int)
     if h < 2 or w < 2:
-        return 1, 1
+        return ones
     q = {(s, t): _sample(gray, grid, s, t) for s in (0.25, 0.5, 0.75) for t in (0.25, 0.5, 0.75)}
     allv = np.concatenate([v.ravel() for v in q.values()])
     contrast = np.percentile(allv, 90) - np.percentile(allv, 10)
     if contrast < 16:
-        return 1, 1
-    along_row = np.median(np.abs(q[0.25, 0.5] - q[0.75, 0.5]))   # across a cell's width
-    down_col = np.median(np.abs(q[0.5, 0.25] - q[0.5, 0.75]))    # across a cell's height
-    # Medians: the tags and markers of tagged boards fill a minority of cells.
-    return (2 if down_col > 0.5 * contrast else 1), (2 if along_row > 0.5 * contrast else 1)
+        return ones
+    # Medians along each gap: the tags and markers of tagged boards fill a minority of cells.
+    down = np.median(np.abs(q[0.5, 0.25] - q[0.5, 0.75]), axis=1) / contrast   # (h-1,)
+    along = np.median(np.abs(q[0.25, 0.5] - q[0.75, 0.5]), axis=0) / contrast  # (w-1,)
+    return tuple(np.where(x < 0.25, 1, np.where(x > 0.5, 2, 0)) for x in (down, along))
 
 
-def expand(grid: np.ndarray, sr: int, sc: int) -> tuple[np.ndarray, np.ndarray]:
-    """Grid (h, w, 2) with sr-1 / sc-1 interpolated lines inserted between rows / columns:
-    ((h-1)*sr+1, (w-1)*sc+1, 2), and the mask of its detected (not inserted) corners."""
+def lattice_score(grid: np.ndarray, gray: np.ndarray) -> float:
+    """Share of the cells of grid (h, w, 2) that look like one chessboard square each:
+    one colour at all four quarter points, bright and dark alternating like a checker.
+
+    A sheared grid (an axis that runs diagonally over the board, which LARGER can grow)
+    or a wrongly expanded one scores near 0.5 or below; tagged boards lose only their
+    tag squares.
+    """
     h, w = grid.shape[:2]
-    ri = np.arange((h - 1) * sr + 1) / sr
-    ci = np.arange((w - 1) * sc + 1) / sc
-    r0, c0 = np.minimum(ri.astype(int), h - 2), np.minimum(ci.astype(int), w - 2)
-    fr, fc = (ri - r0)[:, None, None], (ci - c0)[None, :, None]
-    g00, g01 = grid[r0][:, c0], grid[r0][:, c0 + 1]
-    g10, g11 = grid[r0 + 1][:, c0], grid[r0 + 1][:, c0 + 1]
-    full = (1 - fr) * (1 - fc) * g00 + (1 - fr) * fc * g01 + fr * (1 - fc) * g10 + fr * fc * g11
+    if h < 2 or w < 2:
+        return 0.0
+    q = np.stack([_sample(gray, grid, s, t) for s in (0.25, 0.75) for t in (0.25, 0.75)])  # (4, h-1, w-1)
+    lo, hi = np.percentile(q, 10), np.percentile(q, 90)
+    if hi - lo < 16:
+        return 0.0
+    uniform = q.max(0) - q.min(0) < 0.5 * (hi - lo)
+    bright = q.mean(0) > 0.5 * (lo + hi)
+    parity = np.indices(bright.shape).sum(0) % 2 == 0
+    checker = max(np.mean(bright == parity), np.mean(bright != parity))
+    return float(min(np.mean(uniform), checker))
+
+
+def _longest_run(ok: np.ndarray) -> tuple[int, int]:
+    """[start, end) of the longest run of True in ok (n,)."""
+    best, start = (0, 0), None
+    for k, v in enumerate(np.append(ok, False)):
+        if v and start is None:
+            start = k
+        elif not v and start is not None:
+            best = max(best, (start, k), key=lambda r: r[1] - r[0])
+            start = None
+    return best
+
+
+def expand(grid: np.ndarray, sr: np.ndarray, sc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Grid (h, w, 2) on the board's own lattice: gap k of rows (columns) spans sr[k] (sc[k])
+    squares, the corners in between are interpolated. Returns (H, W, 2) and the (H, W) mask
+    of detected (not inserted) corners."""
+    def positions(strides, n):
+        at = np.concatenate([[0], np.cumsum(strides)])                # lattice index of each grid line
+        lat = np.arange(at[-1] + 1)
+        k = np.minimum(np.searchsorted(at, lat, side="right") - 1, n - 2)
+        return k, (lat - at[k]) / np.asarray(strides)[k], at
+
+    h, w = grid.shape[:2]
+    r0, fr, at_r = positions(sr, h)
+    c0, fc = positions(sc, w)[:2]
+    at_c = np.concatenate([[0], np.cumsum(sc)])
+    fr, fc = fr[:, None, None], fc[None, :, None]
+    full = ((1 - fr) * (1 - fc) * grid[r0][:, c0] + (1 - fr) * fc * grid[r0][:, c0 + 1]
+            + fr * (1 - fc) * grid[r0 + 1][:, c0] + fr * fc * grid[r0 + 1][:, c0 + 1])
     real = np.zeros(full.shape[:2], bool)
-    real[::sr, ::sc] = True
+    real[np.ix_(at_r, at_c)] = True
     return full, real
 
 
@@ -112,16 +156,23 @@ def place_grid(grid: np.ndarray, cols: int, rows: int, gray: np.ndarray) -> tupl
     None when the grid fits the board in no orientation (a detector that ran
     past the board's edge).
     """
-    sr, sc = lattice_strides(grid, gray)
-    if (sr, sc) != (1, 1):
-        full, real = expand(grid, sr, sc)
-        placed = _place(np.concatenate([full, real[..., None]], -1), cols, rows, gray)
-        if placed is None:
+    sr, sc = gap_strides(grid, gray)
+    if (sr == 0).any() or (sc == 0).any():
+        # Unreadable gaps: keep the largest block of the grid between them.
+        a, b = _longest_run(sr > 0)
+        c, d = _longest_run(sc > 0)
+        if b - a < 1 or d - c < 1:
             return None
-        ids, pts = placed
-        keep = pts[:, 2] > 0.5
-        return ids[keep], pts[keep, :2]
-    return _place(grid, cols, rows, gray)
+        grid, sr, sc = grid[a:b + 1, c:d + 1], sr[a:b], sc[c:d]
+    if (sr == 1).all() and (sc == 1).all():
+        return _place(grid, cols, rows, gray)
+    full, real = expand(grid, sr, sc)
+    placed = _place(np.concatenate([full, real[..., None]], -1), cols, rows, gray)
+    if placed is None:
+        return None
+    ids, pts = placed
+    keep = pts[:, 2] > 0.5
+    return ids[keep], pts[keep, :2]
 
 
 def _place(grid: np.ndarray, cols: int, rows: int, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:

@@ -12,7 +12,7 @@ from calib_core.board import BoardSpec
 from calib_core.coverage import coverage, empty_regions
 from calib_core.detect import detect_images
 from calib_core.errors import DataError
-from calib_core.grid import place_grid, right_handed
+from calib_core.grid import expand, gap_strides, lattice_score, place_grid, right_handed
 
 BOARD = BoardSpec.parse("chessboard:6x5:10mm")
 
@@ -123,3 +123,22 @@ def test_cli_detect_writes_observations(images, tmp_path, capsys):
     assert doc["format"] == "freecal.observations/1" and len(doc["views"]) == 2
     assert cli(["detect", str(images), "--board", "chessboard:9:10mm"]) == 2
     assert "expected a grid like 9x6" in capsys.readouterr().err
+
+
+def test_grids_that_skip_or_shear_board_lines_are_read_as_such():
+    img = board_image()
+    c, r = np.meshgrid(np.arange(6), np.arange(5))
+    full = np.stack([60 + (c + 1) * 40 - 0.5, 60 + (r + 1) * 40 - 0.5], -1).astype(float)  # (5, 6, 2)
+    assert [s.tolist() for s in gap_strides(full, img)] == [[1] * 4, [1] * 5]
+    assert lattice_score(full, img) > 0.95
+    skip = full[::2]                                   # rows 0, 2, 4: every other board line
+    sr, sc = gap_strides(skip, img)
+    assert sr.tolist() == [2, 2] and sc.tolist() == [1] * 5
+    grown, real = expand(skip, sr, sc)
+    np.testing.assert_allclose(grown, full)
+    assert real.sum() == skip.shape[0] * skip.shape[1]
+    ids, _ = place_grid(skip, 6, 5, img)
+    assert sorted((ids // 6).tolist()) == [0] * 6 + [2] * 6 + [4] * 6  # board rows 0, 2, 4: the gaps kept
+    sheared = full[:3, :3].copy()
+    sheared[1:] = full[1:3, 1:4]                       # rows shifted by one column: a diagonal axis
+    assert lattice_score(sheared, img) < 0.8

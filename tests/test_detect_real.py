@@ -95,5 +95,5 @@ def test_babelcalib_fisheye_partial_boards_match_reference():
     assert np.mean(d < 0.5) >= 0.95, f"only {np.mean(d < 0.5):.1%} of corners within 0.5 px of the reference"
     assert np.median(d) < 0.3
     # One consistent lattice in every view, including the two steep views where LARGER grows
-    # a grid over every other board row (grid.lattice_strides); before that fix 15-22 %.
+    # a grid over every other board row (grid.gap_strides); before that fix 15-22 %.
     assert min(lattice_ok) >= 0.98, np.round(lattice_ok, 2)

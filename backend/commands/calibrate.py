@@ -1,11 +1,17 @@
-"""freecal calibrate OBS.json --method bspline -o CAL.json [settings]"""
+"""freecal calibrate OBS.json --method bspline -o CAL.json [settings]
+freecal calibrate IMAGES_OR_DIR... --board SPEC ... (detects first, then calibrates)"""
 from __future__ import annotations
 
 import argparse
+import contextlib
+import sys
+from pathlib import Path
 
 from calib_core import Observations, calibrate
+from calib_core.detect import IMAGE_SUFFIXES
 from calib_core.errors import SettingsError
 
+from .detect import BOARD_HELP, detect_with_report
 from .output import StageProgress, print_json, table
 
 
@@ -55,9 +61,13 @@ BSPLINE_FLAGS = [
 
 
 def register(sub) -> None:
-    p = sub.add_parser("calibrate", help="calibrate from observations (corners) JSON",
-                       description="Calibrate a camera from freecal.observations/1 corners.")
-    p.add_argument("observations", help="freecal.observations/1 JSON file")
+    p = sub.add_parser("calibrate", help="calibrate from observations (corners) JSON, or from images",
+                       description="Calibrate a camera from freecal.observations/1 corners, or from photos "
+                                   "(with --board: detect the board first, then calibrate).")
+    p.add_argument("observations", nargs="+", metavar="OBS.json | IMAGES",
+                   help="freecal.observations/1 JSON file, or image files and/or folders (with --board)")
+    p.add_argument("--board", help="detect this board in the images first; " + BOARD_HELP)
+    p.add_argument("--workers", type=int, default=None, help="detection worker processes (default: all cores)")
     p.add_argument("--method", default="bspline", help="calibration method (default: bspline)")
     p.add_argument("-o", "--output", help="write the freecal.calibration/1 JSON here")
     p.add_argument("--json", action="store_true", help="print the calibration JSON instead of a summary")
@@ -90,8 +100,23 @@ def _value(text: str):
     return text
 
 
+def observations_of(args) -> Observations:
+    """The observations JSON, or (with --board) the corners detected in the images given."""
+    if args.board:
+        # With --json, stdout carries the calibration alone: the detection report goes to stderr.
+        with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
+            det = detect_with_report(args.observations, args.board, args.quiet or args.json, args.workers)
+            print()
+        return det.observations
+    first = Path(args.observations[0])
+    if len(args.observations) != 1 or first.is_dir() or first.suffix.lower() in IMAGE_SUFFIXES:
+        raise SettingsError("to calibrate from images, say which board they show: --board SPEC "
+                            "(e.g. chessboard:9x6:25mm); otherwise give one observations JSON file")
+    return Observations.load(args.observations[0])
+
+
 def run(args) -> int:
-    obs = Observations.load(args.observations)
+    obs = observations_of(args)
     cal = calibrate(obs, args.method, progress=StageProgress(args.quiet or args.json),
                     outlier_sigma=args.outlier_sigma, **settings_of(args))
     if args.output:

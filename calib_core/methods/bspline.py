@@ -192,8 +192,8 @@ def ideal_field_problem(init, data: Data, image_size, s: BSplineSettings):
         )
 
     def samples(model, poses, sub):
-        pts, _ = ideal_samples(model, poses, sub, s.base)
-        return pts, sub.image_points - pts
+        pts, seen = ideal_samples(model, poses, sub, s.base)
+        return pts[seen], sub.image_points[seen] - pts[seen]
 
     def make(field, lambda_smooth, start):
         k = start.intrinsics
@@ -313,13 +313,15 @@ def fit_bspline(data: Data, image_size, s: BSplineSettings, progress: Progress) 
     and keeps the core only if it predicts the corners clearly better."""
     if s.core != "auto":
         return _fit_field(data, image_size, s, s.core, progress)[0]
-    plain, plain_score = _fit_field(data, image_size, s, "none", _scaled(progress, 0.0, 0.5))
-    if plain.excluded.any():
+    init = initialise(data, image_size)
+    _, seen = ideal_samples(init.model, init.poses, data, "pinhole")
+    if not seen.all():
         # Corners past the pinhole's reach: a lens beyond ~170°, where only the
         # Kannala–Brandt core represents every corner.
-        chosen = _fit_field(data, image_size, s, "fisheye", _scaled(progress, 0.5, 1.0))[0]
-        reason = "corners lie past the pinhole's reach: Kannala-Brandt core"
+        chosen = _fit_field(data, image_size, s, "fisheye", progress)[0]
+        reason = f"{int((~seen).sum())} corners lie past the pinhole's reach: Kannala-Brandt core"
     else:
+        plain, plain_score = _fit_field(data, image_size, s, "none", _scaled(progress, 0.0, 0.5))
         cored, cored_score = _fit_field(data, image_size, s, "rational", _scaled(progress, 0.5, 1.0))
         better = cored_score < plain_score * (1 - GCV_TOLERANCE)
         chosen = cored if better else plain

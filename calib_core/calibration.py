@@ -107,19 +107,28 @@ class Calibration:
                 for v in self.views
             ],
             "dropped_views": list(self.dropped_views),
-            "metrics": _clean(self.metrics),
-            "settings": _clean(self.settings),
-            "diagnostics": _clean(self.diagnostics),
+            "metrics": json_safe(self.metrics),
+            "settings": json_safe(self.settings),
+            "diagnostics": json_safe(self.diagnostics),
         }
 
     @classmethod
     def from_json(cls, doc: Any) -> "Calibration":
+        try:
+            return cls._from_json(doc)
+        except (TypeError, ValueError, OverflowError, KeyError, IndexError, AttributeError) as exc:
+            # a shape no check below foresaw (e.g. in a model's own reader): still a format error
+            raise FormatError(f"calibration: malformed document ({type(exc).__name__}: {exc}); "
+                              f"expected {FORMAT} as in formats.md") from None
+
+    @classmethod
+    def _from_json(cls, doc: Any) -> "Calibration":
         if not isinstance(doc, dict):
             raise FormatError("calibration: expected a JSON object at the top level")
         if doc.get("format") != FORMAT:
             raise FormatError(f"format: expected {FORMAT!r}, got {doc.get('format')!r}")
         image_size = doc.get("image_size")
-        if not (isinstance(image_size, list) and len(image_size) == 2 and all(isinstance(x, int) and x > 0 for x in image_size)):
+        if not (isinstance(image_size, list) and len(image_size) == 2 and all(isinstance(x, int) and not isinstance(x, bool) and 0 < x < 2**31 for x in image_size)):
             raise FormatError(f"image_size: expected [width, height] as positive integers, got {image_size!r}")
         base = doc.get("base", "pinhole")
         if base not in camera.BASES:
@@ -128,6 +137,12 @@ class Calibration:
         dist = doc.get("distortion")
         if not isinstance(dist, dict) or "type" not in dist:
             raise FormatError("distortion: expected an object with a 'type'")
+        if not isinstance(dist["type"], str):
+            raise FormatError(f"distortion.type: expected a string, one of {sorted(MODEL_TYPES)}")
+        for key, kind in (("metrics", dict), ("settings", dict), ("diagnostics", dict), ("dropped_views", list),
+                          ("views", list)):
+            if not isinstance(doc.get(key, kind()), kind):
+                raise FormatError(f"{key}: expected {'an object' if kind is dict else 'a list'}")
         reader = MODEL_TYPES.get(dist["type"])
         if reader is None:
             raise FormatError(f"distortion.type: unknown type {dist['type']!r}; known: {sorted(MODEL_TYPES)}")
@@ -141,7 +156,7 @@ class Calibration:
                     _float(v.get("rmse")), _float(v.get("rmse_axis")), int(v.get("n_points", 0)),
                     [int(i) for i in v.get("outliers", [])],
                 ))
-            except (KeyError, TypeError, ValueError):
+            except (KeyError, TypeError, ValueError, OverflowError, AttributeError):
                 raise FormatError(f"views[{k}]: expected name, rvec [3 numbers] and tvec [3 numbers]") from None
         return cls(model, (image_size[0], image_size[1]), str(doc.get("model", dist["type"])), views,
                    list(doc.get("dropped_views", [])), dict(doc.get("metrics", {})),
@@ -161,12 +176,19 @@ def _intrinsics(raw: Any) -> np.ndarray:
     out = []
     for key in ("fx", "fy", "cx", "cy", "skew"):
         val = raw.get(key, 0.0 if key == "skew" else None)
-        if not isinstance(val, (int, float)) or isinstance(val, bool) or not math.isfinite(val):
+        if not isinstance(val, (int, float)) or isinstance(val, bool) or not _finite(val):
             raise FormatError(f"intrinsics.{key}: expected a finite number, got {val!r}")
         out.append(float(val))
     if out[0] == 0 or out[1] == 0:
         raise FormatError("intrinsics: fx and fy must be non-zero")
     return np.array(out)
+
+
+def _finite(x: int | float) -> bool:
+    try:
+        return math.isfinite(x)
+    except OverflowError:  # an int past float64
+        return False
 
 
 def _float(x) -> float:
@@ -178,15 +200,20 @@ def _num(x: float):
     return None if x is None or not math.isfinite(float(x)) else float(x)
 
 
-def _clean(obj):
-    """Make a nested structure JSON-safe (numpy scalars and arrays, NaN → null)."""
+def json_safe(obj):
+    """A nested structure made JSON-safe: numpy scalars and arrays → Python,
+    NaN/inf → null, anything with ``to_json()`` (a Calibration) → its JSON."""
+    if hasattr(obj, "to_json"):
+        return obj.to_json()
     if isinstance(obj, dict):
-        return {str(k): _clean(v) for k, v in obj.items()}
+        return {str(k): json_safe(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
+        return [json_safe(v) for v in obj]
     if isinstance(obj, np.ndarray):
-        return _clean(obj.tolist())
-    if isinstance(obj, (np.integer,)):
+        return json_safe(obj.tolist())
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, np.integer):
         return int(obj)
     if isinstance(obj, (float, np.floating)):
         return _num(float(obj))

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from calib_core import Calibration, Observations
+from calib_core.calibration import json_safe
 
 from ..app import storage
 
@@ -55,18 +56,18 @@ def write_comparison(out: Path, result: dict[str, Any], obs: Observations,
     if best is not None:
         names += write_calibration(out, best, obs)
     rows = comparison_rows(result)
-    doc = _clean({k: v for k, v in result.items() if not _is_calibration_map(v)})
+    doc = json_safe({k: v for k, v in result.items() if not _is_calibration_map(v)})
     names += _write(out, {"comparison.json": doc, "comparison.csv": to_csv(rows)})
     return sorted(set(names))
 
 
 def summary(cal: Calibration) -> dict[str, Any]:
-    return _clean({"method": cal.method, "metrics": cal.metrics, "n_views": len(cal.views),
+    return json_safe({"method": cal.method, "metrics": cal.metrics, "n_views": len(cal.views),
                    "dropped_views": len(cal.dropped_views)})
 
 
 def compare_summary(result: dict[str, Any]) -> dict[str, Any]:
-    return _clean({"methods": [r.get("method") for r in comparison_rows(result)],
+    return json_safe({"methods": [r.get("method") for r in comparison_rows(result)],
                    "verdict": result.get("verdict", result.get("best")),
                    "verdict_detail": result.get("verdict_detail")})
 
@@ -117,7 +118,7 @@ def heatmap(corners: list[dict[str, Any]], image_size: tuple[int, int]) -> dict[
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = np.where(count > 0, total / np.maximum(count, 1), np.nan)
     return {"cells": [nx, ny], "image_size": list(image_size), "metric": "mean per-point error [px]",
-            "mean_error": _clean(mean), "count": count.tolist()}
+            "mean_error": json_safe(mean), "count": count.tolist()}
 
 
 def distortion_field(cal: Calibration) -> dict[str, Any]:
@@ -128,8 +129,8 @@ def distortion_field(cal: Calibration) -> dict[str, Any]:
     uv = np.column_stack([u.ravel(), v.ravel()])
     ideal = cal.undistort_points(uv)
     d = uv - ideal
-    return {"grid": [nu, nv], "image_size": [w, h], "u": _clean(uv[:, 0]), "v": _clean(uv[:, 1]),
-            "dx": _clean(d[:, 0]), "dy": _clean(d[:, 1]),
+    return {"grid": [nu, nv], "image_size": [w, h], "u": json_safe(uv[:, 0]), "v": json_safe(uv[:, 1]),
+            "dx": json_safe(d[:, 0]), "dy": json_safe(d[:, 1]),
             "note": "observed pixel minus its ideal pinhole pixel; null where the ray is 90 degrees or more off axis"}
 
 
@@ -196,7 +197,7 @@ def _write(out: Path, files: dict[str, Any]) -> list[str]:
         if isinstance(content, str):
             storage.write_text(out / name, content)
         else:
-            storage.write_json(out / name, _clean(content), indent=1 if name == "calibration.json" else None)
+            storage.write_json(out / name, json_safe(content), indent=1 if name == "calibration.json" else None)
     return sorted(files)
 
 
@@ -221,7 +222,7 @@ def _flat(row: dict[str, Any], prefix: str = "") -> dict[str, Any]:
         if isinstance(v, dict):
             out.update(_flat(v, f"{prefix}{k}."))
         elif _scalar(v):
-            out[prefix + k] = _clean(v)
+            out[prefix + k] = json_safe(v)
     return out
 
 
@@ -234,20 +235,3 @@ def _num(x: float) -> float | None:
     return x if math.isfinite(x) else None
 
 
-def _clean(obj: Any) -> Any:
-    """JSON-safe: numpy → Python, NaN/inf → null, Calibration → its JSON."""
-    if isinstance(obj, Calibration):
-        return obj.to_json()
-    if isinstance(obj, dict):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _clean(obj.tolist())
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return _num(obj)
-    return obj

@@ -118,6 +118,26 @@ class CameraModel:
         return {"fx": fx, "fy": fy, "cx": cx, "cy": cy, "skew": s}
 
 
+class ParametricModel(CameraModel):
+    """A model with parameters ``[fx, fy, cx, cy, coefficients…]``, skew 0
+    (OpenCV's and Kannala–Brandt's)."""
+
+    def __init__(self, intrinsics, coefficients):
+        self.intrinsics = np.asarray(intrinsics, dtype=np.float64).copy()
+        self.intrinsics[4] = 0.0
+        self.coefficients = np.asarray(coefficients, dtype=np.float64).copy()
+
+    @property
+    def n_params(self) -> int:
+        return 4 + len(self.coefficients)
+
+    def params(self) -> np.ndarray:
+        return np.concatenate([self.intrinsics[:4], self.coefficients])
+
+    def with_params(self, x: np.ndarray) -> "ParametricModel":
+        return type(self)(np.append(x[:4], 0.0), x[4:])
+
+
 def intrinsics_jacobian(xn: np.ndarray, a: np.ndarray) -> np.ndarray:
     """∂uv/∂[fx, fy, cx, cy, skew] (N, 2, 5) for ``uv = m(K xn)`` with ∂m = ``a`` (N, 2, 2)."""
     n = len(xn)

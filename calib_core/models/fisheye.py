@@ -13,27 +13,15 @@ from typing import Any
 import numpy as np
 
 from ..errors import FormatError
-from .base import CameraModel
+from .base import ParametricModel
 
 
-class FisheyeModel(CameraModel):
+class FisheyeModel(ParametricModel):
     kind = "fisheye"
 
     def __init__(self, intrinsics, coefficients):
-        self.intrinsics = np.asarray(intrinsics, dtype=np.float64)
-        self.intrinsics[4] = 0.0
-        self.coefficients = np.asarray(coefficients, dtype=np.float64)
+        super().__init__(intrinsics, coefficients)
         self.base = "equidistant"
-
-    @property
-    def n_params(self) -> int:
-        return 4 + len(self.coefficients)
-
-    def params(self) -> np.ndarray:
-        return np.concatenate([self.intrinsics[:4], self.coefficients])
-
-    def with_params(self, x: np.ndarray) -> "FisheyeModel":
-        return FisheyeModel(np.append(x[:4], 0.0), x[4:])
 
     def _poly(self, q: np.ndarray):
         """1 + Σ k_i q^i and its derivative in q, for q = θ²."""

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FormatError
-from .base import CameraModel
+from .base import ParametricModel
 
 ALLOWED_COUNTS = (4, 5, 8, 12, 14)
 
@@ -47,26 +47,14 @@ def tilt_matrix(tx: float, ty: float):
     return m, dm_x, dm_y
 
 
-class OpenCVModel(CameraModel):
+class OpenCVModel(ParametricModel):
     kind = "opencv"
 
     def __init__(self, intrinsics, coefficients):
-        self.intrinsics = np.asarray(intrinsics, dtype=np.float64).copy()
-        self.intrinsics[4] = 0.0
-        self.coefficients = np.asarray(coefficients, dtype=np.float64).copy()
+        super().__init__(intrinsics, coefficients)
         if len(self.coefficients) not in ALLOWED_COUNTS:
             raise FormatError(f"distortion.coefficients: OpenCV takes 4, 5, 8, 12 or 14 values, got {len(self.coefficients)}")
         self.base = "pinhole"
-
-    @property
-    def n_params(self) -> int:
-        return 4 + len(self.coefficients)
-
-    def params(self) -> np.ndarray:
-        return np.concatenate([self.intrinsics[:4], self.coefficients])
-
-    def with_params(self, x: np.ndarray) -> "OpenCVModel":
-        return OpenCVModel(np.append(x[:4], 0.0), x[4:])
 
     def _full(self) -> np.ndarray:
         k = np.zeros(14)

@@ -83,6 +83,14 @@ class Observations:
 
     @classmethod
     def from_json(cls, doc: Any) -> "Observations":
+        try:
+            return cls._from_json(doc)
+        except (TypeError, ValueError, OverflowError) as exc:  # a shape no check below foresaw
+            raise FormatError(f"observations: malformed document ({type(exc).__name__}: {exc}); "
+                              f"expected {FORMAT} as in formats.md") from None
+
+    @classmethod
+    def _from_json(cls, doc: Any) -> "Observations":
         if not isinstance(doc, dict):
             raise FormatError("observations: expected a JSON object at the top level")
         fmt = doc.get("format")
@@ -101,6 +109,7 @@ class Observations:
         views, seen = [], set()
         for k, rv in enumerate(raw_views):
             view = _view(k, rv)
+            _inside(k, rv, view, image_size)
             if view.name in seen:
                 raise FormatError(f"views[{k}].name: {view.name!r} appears twice; view names must be unique")
             seen.add(view.name)
@@ -142,8 +151,8 @@ def _image_size(raw: Any) -> tuple[int, int]:
     ok = (
         isinstance(raw, list)
         and len(raw) == 2
-        and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in raw)
-        and all(float(x).is_integer() and x > 0 for x in raw)
+        and all(_is_number(x) for x in raw)
+        and all(float(x).is_integer() and 0 < x < 2**31 for x in raw)
     )
     if not ok:
         raise FormatError(f"image_size: expected [width, height] as two positive integers, got {raw!r}")
@@ -167,8 +176,25 @@ def _points(where: str, key: str, raw: Any, dim: int) -> np.ndarray:
     return np.asarray(raw, dtype=np.float64).reshape(-1, dim)
 
 
+def _inside(k: int, rv: Any, view: "View", image_size: tuple[int, int]) -> None:
+    """Observed corners lie in the image; one a whole image width or height outside is a wrong value."""
+    w, h = image_size
+    far = ((view.image_points < [-w, -h]) | (view.image_points > [2 * w, 2 * h])).any(axis=1)
+    if far.any():
+        j = int(np.argmax(far))
+        raise FormatError(f"{_where(k, rv)}.image_points[{j}]: {view.image_points[j].tolist()} lies far outside "
+                          f"the {w}x{h} image; image points are pixels of that image (check image_size and units)")
+
+
 def _is_number(x: Any) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool)
+    """A JSON number that fits a float64 (10**400 does not)."""
+    if not isinstance(x, (int, float)) or isinstance(x, bool):
+        return False
+    try:
+        float(x)
+    except OverflowError:
+        return False
+    return True
 
 
 def _view(k: int, rv: Any) -> View:
@@ -187,7 +213,8 @@ def _view(k: int, rv: Any) -> View:
         )
     ids = rv.get("ids")
     if ids is not None:
-        if not (isinstance(ids, list) and all(isinstance(i, int) and not isinstance(i, bool) and i >= 0 for i in ids)):
+        if not (isinstance(ids, list) and all(isinstance(i, int) and not isinstance(i, bool) and 0 <= i < 2**63
+                                              for i in ids)):
             raise FormatError(f"{where}.ids: expected a list of non-negative integers")
         if len(ids) != len(img):
             raise FormatError(f"{where}.ids: has {len(ids)} entries for {len(img)} points")

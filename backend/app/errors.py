@@ -7,7 +7,9 @@ and is logged with its traceback on the server.
 """
 from __future__ import annotations
 
+import errno
 import logging
+import sqlite3
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
@@ -28,6 +30,28 @@ def not_found(what: str, ident: str) -> ApiError:
     return ApiError(404, f"no {what} with id {ident!r}: list them at /api/{what}s")
 
 
+DISK_FULL = "the server's disk is full: nothing was stored; free space in its data directory (or ask its " \
+            "administrator to) and retry"
+READ_ONLY = "the server cannot write its data directory (read-only or no permission): nothing was stored; " \
+            "ask its administrator to make FREECAL_DATA_DIR writable, then retry"
+
+
+def storage_failure(exc: BaseException) -> tuple[int, str] | None:
+    """(status, message) when ``exc`` means the data directory cannot take writes, else None."""
+    if isinstance(exc, OSError):
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            return 507, DISK_FULL
+        if exc.errno in (errno.EROFS, errno.EACCES, errno.EPERM):
+            return 503, READ_ONLY
+    if isinstance(exc, sqlite3.OperationalError):
+        text = str(exc).lower()
+        if "disk is full" in text or "disk i/o" in text:
+            return 507, DISK_FULL
+        if "readonly" in text or "read-only" in text or "unable to open" in text:
+            return 503, READ_ONLY
+    return None
+
+
 def install(app: FastAPI) -> None:
     @app.exception_handler(ApiError)
     async def api_error(request: Request, exc: ApiError) -> JSONResponse:
@@ -45,6 +69,22 @@ def install(app: FastAPI) -> None:
             parts.append(f"{where}: {err.get('msg')}" if where else str(err.get("msg")))
         return JSONResponse({"detail": "invalid request: " + "; ".join(parts) + " (see /docs for the schema)"},
                             status_code=422)
+
+    @app.exception_handler(OSError)
+    async def os_error(request: Request, exc: OSError) -> JSONResponse:
+        answer = storage_failure(exc)
+        if answer is None:
+            return await unexpected(request, exc)
+        log.error("%s %s: %s", request.method, request.url.path, exc)
+        return JSONResponse({"detail": answer[1]}, status_code=answer[0])
+
+    @app.exception_handler(sqlite3.OperationalError)
+    async def db_error(request: Request, exc: sqlite3.OperationalError) -> JSONResponse:
+        answer = storage_failure(exc)
+        if answer is None:
+            return await unexpected(request, exc)
+        log.error("%s %s: %s", request.method, request.url.path, exc)
+        return JSONResponse({"detail": answer[1]}, status_code=answer[0])
 
     @app.exception_handler(Exception)
     async def unexpected(request: Request, exc: Exception) -> JSONResponse:

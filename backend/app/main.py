@@ -20,6 +20,7 @@ from . import errors
 from .context import Context
 from .limits import BodyLimit
 from . import frontend
+from .security import ClientQuota, TokenDep, install_cors, install_docs
 from .routers import figures, health, images, jobs, sets, viewer
 from .settings import Settings
 
@@ -57,11 +58,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         description="Camera calibration as a service: upload image sets, run calibration jobs on a queue, "
                     "download results. Errors answer 4xx with a message saying what to do.",
         lifespan=lifespan,
+        docs_url=None, redoc_url=None,  # /docs is served locally by install_docs (no CDN)
     )
+    app.state.settings = settings
+    app.state.quota = ClientQuota(settings.max_jobs_per_client)
     errors.install(app)
     app.add_middleware(BodyLimit, max_bytes=settings.max_upload_bytes + 1024 * 1024)  # + multipart overhead
+    install_cors(app, settings.cors_origins)
     for module in (sets, images, jobs, figures, viewer, health):
-        app.include_router(module.router)
+        app.include_router(module.router, dependencies=[TokenDep])  # FREECAL_TOKEN, when set
+    install_docs(app)
     frontend.mount(app)  # last: the page at / never shadows /api or /docs
     return app
 

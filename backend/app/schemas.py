@@ -109,3 +109,5 @@ class Health(BaseModel):
     queue: Literal["sqlite", "redis"]
     workers: int = Field(description="workers heard from within the lease time")
     jobs: dict[str, int] = Field(description="jobs by state")
+    queue_available: bool = Field(True, description="whether the queue takes jobs now (Redis reachable)")
+    queue_error: str | None = Field(None, description="why not, when it does not")

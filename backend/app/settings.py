@@ -43,6 +43,15 @@ class Settings:
     # viser takes the next free port if this one is taken (0: any free port).
     viewer: bool = True
     viewer_port: int = 8080
+    # Hardening (README "Security" and "Limits"):
+    # token: when set, every /api request needs "Authorization: Bearer <token>" or ?token=<token>.
+    token: str = ""
+    # cors_origins: comma-separated origins allowed to call the API from another site ("" = none, closed).
+    cors_origins: str = ""
+    # Jobs (detections and calibrations) one client IP may have queued or running at once (429 beyond).
+    max_jobs_per_client: int = 20
+    # A job running longer than this (seconds) is stopped and failed with the reason (0 = no limit).
+    job_timeout: float = 1800.0
 
     @property
     def db_path(self) -> Path:
@@ -69,6 +78,9 @@ class Settings:
             except ValueError:
                 raise SystemExit(f"FREECAL_{f.name.upper()}={raw!r}: expected {kind.__name__}") from None
         settings = replace(cls(**values), **{k: v for k, v in overrides.items() if v is not None})
+        for name in ("max_upload_bytes", "max_files", "max_image_pixels", "max_jobs_per_client"):
+            if getattr(settings, name) < 1:
+                raise SystemExit(f"FREECAL_{name.upper()}={getattr(settings, name)}: expected a positive number")
         if settings.queue not in ("sqlite", "redis"):
             raise SystemExit(f"FREECAL_QUEUE={settings.queue!r}: expected 'sqlite' or 'redis'")
         return replace(settings, data_dir=Path(settings.data_dir).resolve())

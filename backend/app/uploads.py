@@ -17,6 +17,11 @@ from .image_header import IMAGE_SUFFIXES, image_size
 from .settings import Settings
 
 
+MIN_SIDE = 32               # pixels: no board's corners fit in less
+MAX_ZIP_RATIO = 200         # unpacked / packed bytes of a zip's images
+CHUNK_SLACK = 1024 * 1024    # small zips of tiny images may compress better: no ratio check below this
+
+
 @dataclass
 class Upload:
     name: str
@@ -49,7 +54,7 @@ def receive(uploads: list[Upload], images_dir: Path, settings: Settings) -> Rece
         except storage.TooLarge:
             raise ApiError(413, f"the upload is over the limit of {settings.max_upload_bytes} bytes "
                                 f"(reached at {up.name!r}): send fewer or smaller images") from None
-        _check_pixels(images_dir / name, up.name, settings)
+        _check_image(images_dir / name, up.name, settings)
         names.append(name)
     return Received("images", names)
 
@@ -67,8 +72,27 @@ def _image_name(original: str, taken: list[str]) -> str:
     return name
 
 
+# What image files start with, whatever their name says (a .png of text is refused at once).
+MAGIC = (b"\x89PNG\r\n\x1a\n", b"\xff\xd8\xff", b"BM", b"II*\x00", b"MM\x00*", b"P2", b"P5", b"P3", b"P6")
+
+
+def _check_image(path: Path, original: str, settings: Settings) -> None:
+    """Refuse at upload what can never be a usable image: empty, not an image, too many pixels."""
+    with open(path, "rb") as f:
+        head = f.read(16)
+    if not head:
+        raise ApiError(422, f"{original!r} is empty (0 bytes): send the image file itself")
+    if not (head.startswith(MAGIC) or (head[:4] == b"RIFF" and head[8:12] == b"WEBP")):
+        raise ApiError(415, f"{original!r} is not an image: its content is not PNG, JPEG, BMP, TIFF, WebP or "
+                            "PGM/PPM, whatever its name says; send the camera's image files")
+    _check_pixels(path, original, settings)
+
+
 def _check_pixels(path: Path, original: str, settings: Settings) -> None:
     size = image_size(path)
+    if size is not None and min(size) < MIN_SIDE:
+        raise ApiError(422, f"{original!r} is {size[0]}x{size[1]} pixels, too small to show a board (at least "
+                            f"{MIN_SIDE} px a side): send the camera's full-resolution images")
     if size is not None and size[0] * size[1] > settings.max_image_pixels:
         raise ApiError(413, f"{original!r} has {size[0]}x{size[1]} pixels, over the limit of "
                             f"{settings.max_image_pixels} pixels per image: downscale it")
@@ -82,16 +106,33 @@ def _unzip(up: Upload, images_dir: Path, settings: Settings) -> list[str]:
         raise ApiError(413, f"the zip is over the limit of {settings.max_upload_bytes} bytes") from None
     try:
         with zipfile.ZipFile(tmp) as zf:
+            links = [m.filename for m in zf.infolist() if (m.external_attr >> 16) & 0o170000 == 0o120000]
+            if links:  # never followed, never stored: a link names a file outside the upload
+                raise ApiError(422, f"{up.name!r} holds a symbolic link ({links[0]!r}): zip the image files "
+                                    "themselves (zip without -y / --symlinks)")
+            unsafe = [m.filename for m in zf.infolist() if _escapes(m.filename)]
+            if unsafe:  # never extracted as named (names are reduced to their base name), but refused: say why
+                raise ApiError(422, f"{up.name!r} holds a path that leaves the archive ({unsafe[0]!r}): zip the "
+                                    "images from inside their folder, with relative names")
             members = [m for m in zf.infolist() if not m.is_dir() and not _hidden(m.filename)
                        and m.filename.lower().endswith(IMAGE_SUFFIXES)]
             if not members:
-                raise ApiError(422, f"{up.name!r} holds no images ({', '.join(IMAGE_SUFFIXES)})")
+                nested = any(m.filename.lower().endswith((".zip", ".tar", ".gz", ".7z", ".rar"))
+                             for m in zf.infolist())
+                raise ApiError(422, f"{up.name!r} holds no images ({', '.join(IMAGE_SUFFIXES)})"
+                               + ("; archives inside it are not unpacked: put the images in one zip" if nested else ""))
             if len(members) > settings.max_files:
                 raise ApiError(413, f"{up.name!r} holds {len(members)} images, over the limit of "
                                     f"{settings.max_files} per set")
             # declared sizes first (cheap), then actual bytes while extracting (a zip can lie)
-            if sum(m.file_size for m in members) > settings.max_upload_bytes:
+            declared = sum(m.file_size for m in members)
+            if declared > settings.max_upload_bytes:
                 raise ApiError(413, f"{up.name!r} unpacks to more than {settings.max_upload_bytes} bytes")
+            packed = max(1, sum(m.compress_size for m in members))
+            if declared > MAX_ZIP_RATIO * packed + CHUNK_SLACK:
+                # camera images barely compress (PNG, JPEG): this is a zip bomb or not images at all
+                raise ApiError(413, f"{up.name!r} expands {declared / packed:.0f} times (images barely compress); "
+                                    "zip the camera's image files as they are")
             budget, names = settings.max_upload_bytes, []
             for m in members:
                 name = _image_name(m.filename, names)
@@ -101,13 +142,18 @@ def _unzip(up: Upload, images_dir: Path, settings: Settings) -> list[str]:
                     except storage.TooLarge:
                         raise ApiError(413, f"{up.name!r} unpacks to more than {settings.max_upload_bytes} "
                                             "bytes") from None
-                _check_pixels(images_dir / name, m.filename, settings)
+                _check_image(images_dir / name, m.filename, settings)
                 names.append(name)
             return names
     except (zipfile.BadZipFile, EOFError):
         raise ApiError(422, f"{up.name!r} is not a readable zip archive") from None
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def _escapes(path: str) -> bool:
+    parts = path.replace("\\", "/").split("/")
+    return path.startswith(("/", "\\")) or ".." in parts or (len(path) > 1 and path[1] == ":")
 
 
 def _hidden(path: str) -> bool:

@@ -40,7 +40,14 @@ def execute(ctx: Context, job_id: str) -> None:
             run.finish("failed", str(exc))
             log.info("job %s failed: %s", job_id, exc)
             return
-        except Exception:
+        except Exception as exc:
+            from ..app.errors import storage_failure
+
+            full = storage_failure(exc)
+            if full is not None:  # disk full / read-only data dir: say so, not "internal error"
+                log.error("job %s: %s", job_id, exc)
+                run.finish("failed", full[1].replace("nothing was stored", "its results could not be written"))
+                return
             log.exception("job %s crashed", job_id)
             run.finish("failed", "internal error while running the job (see the worker log); "
                                  "retry, and report it if it persists")

@@ -17,6 +17,10 @@ NAME = "freecal"
 def build_huey(settings: Settings) -> Huey:
     if settings.queue == "redis":
         # blocking reads: a worker wakes as soon as a job is pushed
-        return RedisHuey(NAME, url=settings.redis_url, results=False, blocking=True, read_timeout=1)
+        # a bounded connect: an unreachable Redis answers 503 in seconds, never hangs a request
+        from redis import ConnectionPool
+
+        pool = ConnectionPool.from_url(settings.redis_url, socket_connect_timeout=3)
+        return RedisHuey(NAME, connection_pool=pool, results=False, blocking=True, read_timeout=1)
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     return SqliteHuey(NAME, filename=str(settings.queue_path), results=False)

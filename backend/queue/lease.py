@@ -31,6 +31,8 @@ class JobRun:
         self._stage_t0 = time.perf_counter()
         self.stages: dict[str, float] = {}
         self._last_report = 0.0
+        self._started = time.monotonic()
+        self.timed_out = False
         self._thread = threading.Thread(target=self._beat, name=f"lease-{job_id}", daemon=True)
 
     def __enter__(self) -> "JobRun":
@@ -42,7 +44,18 @@ class JobRun:
         self._thread.join(timeout=5)
 
     def _beat(self) -> None:
-        while not self._stop.wait(self.ctx.settings.heartbeat_seconds):
+        limit = self.ctx.settings.job_timeout
+        every = self.ctx.settings.heartbeat_seconds if limit <= 0 else min(self.ctx.settings.heartbeat_seconds, limit)
+        while not self._stop.wait(every):
+            if limit > 0 and time.monotonic() - self._started > limit:
+                # FREECAL_JOB_TIMEOUT: fail it now (the API shows why at once); the solver stops at its
+                # next progress step, since this run no longer owns the job
+                self.timed_out = True
+                self.finish("failed", f"the job ran longer than the time limit of {limit:g} s "
+                                      "(FREECAL_JOB_TIMEOUT) and was stopped: use fewer views or knot intervals, "
+                                      "fewer iterations, or ask the administrator for a longer limit")
+                self.lost.set()
+                return
             try:
                 if not jobs.heartbeat(self.ctx.db, self.job_id, self.attempt):
                     self.lost.set()

@@ -24,6 +24,17 @@ class Queue:
         except Exception as exc:  # redis ConnectionError, sqlite OperationalError, ...
             raise QueueUnavailable(f"{type(exc).__name__}: {exc}") from exc
 
+    def problem(self) -> str | None:
+        """Why the queue cannot take jobs now (Redis down), or None when it can."""
+        conn = getattr(self.huey.storage, "conn", None)
+        if conn is None or not hasattr(conn, "ping"):
+            return None  # SQLite: a file beside the database
+        try:
+            conn.ping()
+        except Exception as exc:
+            return f"{type(exc).__name__}: {exc}"
+        return None
+
 
 def build_queue(ctx: Context) -> Queue:
     huey = build_huey(ctx.settings)

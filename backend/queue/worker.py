@@ -22,6 +22,9 @@ def run_worker(settings: Settings, threads: int | None = None, parent_pid: int |
     """Consume jobs until SIGINT (finish running jobs) or SIGTERM (stop now)."""
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
     logging.getLogger("huey").setLevel(logging.WARNING)
+    # OpenCV refuses to decode more pixels than the upload limit (TIFF/WebP bombs whose header
+    # the API does not read); detection processes inherit it. Must precede cv2's import.
+    os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(settings.max_image_pixels))
     from threadpoolctl import threadpool_limits
 
     if settings.blas_threads > 0:  # 0: the libraries' default (one thread per core)

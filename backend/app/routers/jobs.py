@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from fastapi import APIRouter, Response, status
+from fastapi import APIRouter, Request, Response, status
 from fastapi.responses import FileResponse
 
 from ..deps import ContextDep, QueueDep
@@ -11,19 +11,24 @@ from ..errors import ApiError
 from ..presenters import job_public
 from ..repository import jobs as job_rows
 from ..schemas import Created, JobCreate, JobPublic, JobsPublic, Message
+from ..security import QuotaDep, client_of
 from ..services import jobs as service
 
 router = APIRouter(prefix="/api/jobs", tags=["jobs"])
-ERRORS = {404: {"model": Message}, 409: {"model": Message}, 503: {"model": Message}, 422: {"model": Message}}
+ERRORS = {404: {"model": Message}, 409: {"model": Message}, 503: {"model": Message}, 422: {"model": Message},
+          429: {"model": Message}}
 
 # result file → content type; the download is named freecal-job-ID-NAME
 MEDIA = {".json": "application/json", ".csv": "text/csv; charset=utf-8", ".yaml": "application/x-yaml"}
 
 
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=JobPublic, responses=ERRORS)
-def create_job(ctx: ContextDep, queue: QueueDep, body: JobCreate) -> JobPublic:
+def create_job(ctx: ContextDep, queue: QueueDep, quota: QuotaDep, request: Request, body: JobCreate) -> JobPublic:
     """Queue a calibration of a ready set (or of corners given inline) with one method or 'compare'."""
-    return job_public(service.get(ctx, service.create(ctx, queue, body)))
+    quota.check(ctx, client_of(request))  # 429 past FREECAL_MAX_JOBS_PER_CLIENT
+    job_id = service.create(ctx, queue, body)
+    quota.add(client_of(request), job_id)
+    return job_public(service.get(ctx, job_id))
 
 
 @router.get("", response_model=JobsPublic)

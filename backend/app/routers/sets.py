@@ -3,33 +3,38 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, File, Form, Response, UploadFile, status
+from fastapi import APIRouter, File, Form, Request, Response, UploadFile, status
 from fastapi.responses import FileResponse
 from starlette.concurrency import run_in_threadpool
 
 from ..deps import ContextDep, QueueDep
 from ..errors import ApiError
 from ..presenters import set_public
+from ..repository import jobs as job_rows
 from ..repository import sets as set_rows
 from ..schemas import Message, SetPublic, SetsPublic
 from ..services import sets as service
+from ..security import QuotaDep, client_of
 from ..uploads import Upload
 
 router = APIRouter(prefix="/api/sets", tags=["sets"])
 ERRORS = {404: {"model": Message}, 409: {"model": Message}, 503: {"model": Message}, 413: {"model": Message},
-          415: {"model": Message}, 422: {"model": Message}}
+          415: {"model": Message}, 422: {"model": Message}, 429: {"model": Message}}
 
 
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=SetPublic, responses=ERRORS)
 async def create_set(
-    ctx: ContextDep, queue: QueueDep,
+    ctx: ContextDep, queue: QueueDep, quota: QuotaDep, request: Request,
     files: Annotated[list[UploadFile], File(description="images, one .zip of images, or one observations .json")],
     board: Annotated[str | None, Form(description="board spec, e.g. chessboard:9x6:25mm")] = None,
     name: Annotated[str | None, Form(description="a label for the set")] = None,
 ) -> SetPublic:
     """Store the files and queue corner detection (images); a corners JSON is ready at once."""
     uploads = [Upload(f.filename or "file", f.file) for f in files]
+    await run_in_threadpool(quota.check, ctx, client_of(request))  # a set's detection is a job too
     set_id = await run_in_threadpool(service.create, ctx, queue, uploads, board, name)
+    detection = job_rows.latest_detection(ctx.db, set_id)
+    quota.add(client_of(request), detection and detection["id"])
     return set_public(ctx, service.get(ctx, set_id), with_images=True)
 
 

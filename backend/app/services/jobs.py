@@ -1,6 +1,7 @@
 """Calibration jobs: create (validating method and settings first), read, cancel, delete."""
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from calib_core import Observations
@@ -32,6 +33,9 @@ def compare_available() -> bool:
 
 def validate(method: str, settings: dict[str, Any]) -> None:
     """Refuse at once what would fail in the worker: unknown method, unknown or bad settings."""
+    where = _non_finite(settings, "settings")
+    if where:  # JSON has no NaN/Infinity, but Python's parser reads them: refuse before the solver sees one
+        raise ApiError(422, f"{where}: not a finite number (NaN or Infinity); give a finite value")
     if method == COMPARE:
         if not compare_available():
             raise ApiError(422, "method 'compare' is not available in this version; choose one of "
@@ -61,6 +65,16 @@ def validate(method: str, settings: dict[str, Any]) -> None:
         raise
     except (TypeError, ValueError) as exc:
         raise ApiError(422, f"settings of {method}: a value has the wrong type ({exc})") from None
+
+
+def _non_finite(value: Any, where: str) -> str | None:
+    if isinstance(value, float) and not math.isfinite(value):
+        return where
+    if isinstance(value, dict):
+        return next((w for k, v in value.items() if (w := _non_finite(v, f"{where}.{k}"))), None)
+    if isinstance(value, list):
+        return next((w for i, v in enumerate(value) if (w := _non_finite(v, f"{where}[{i}]"))), None)
+    return None
 
 
 def create(ctx: Context, queue: Queue, body: JobCreate) -> str:

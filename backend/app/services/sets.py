@@ -18,6 +18,9 @@ SET_STATE = {"queued": "queued", "running": "detecting", "done": "ready", "faile
 def create(ctx: Context, queue: Queue, files: list[uploads.Upload], board_spec: str | None,
            name: str | None) -> str:
     board = _board(board_spec)
+    if board is None and not (len(files) == 1 and files[0].name.lower().endswith(".json")) and files:
+        raise ApiError(422, "images need a board spec in the form field 'board', e.g. "
+                            "chessboard:9x6:25mm (inner corners and square size)")
     set_id = new_id()
     try:
         got = uploads.receive(files, ctx.storage.images_dir(set_id), ctx.settings)

@@ -14,6 +14,7 @@ starting point of every method.
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import cv2
@@ -138,7 +139,22 @@ def _candidates(data: Data, image_size) -> list[tuple[str, float, float, np.ndar
     return out
 
 
+# One calibration may try several models from the same start (bspline's core
+# choice fits two): the initialisation of a given Data is computed once.
+_CACHE: "weakref.WeakKeyDictionary[Data, dict]" = weakref.WeakKeyDictionary()
+
+
 def initialise(data: Data, image_size: tuple[int, int], n_coefficients: int = 4) -> Initial:
+    """A Kannala–Brandt camera and a pose per view, with no focal guess (cached
+    per ``data`` object: the result is never modified by its users)."""
+    key = (tuple(image_size), n_coefficients)
+    cached = _CACHE.setdefault(data, {})
+    if key not in cached:
+        cached[key] = _initialise(data, image_size, n_coefficients)
+    return cached[key]
+
+
+def _initialise(data: Data, image_size: tuple[int, int], n_coefficients: int) -> Initial:
     """A Kannala–Brandt camera and a pose per view, with no focal guess.
 
     Each candidate is scored after fitting only its focal lengths and the poses

@@ -25,7 +25,7 @@ class Cancelled(Exception):
     """Raised by a progress callback to stop a running solve."""
 
 
-@dataclass
+@dataclass(eq=False)  # compared (and hashed) by identity: a Data is never modified
 class Data:
     """The observations as flat arrays.
 

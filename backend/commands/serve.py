@@ -31,6 +31,9 @@ def run(args) -> int:
     from ..app.main import create_app
 
     settings = settings_of(args)
+    from ..app.context import Context
+
+    Context.check_writable(settings.data_dir)  # a clear line now, not a traceback from every process
     env = {**os.environ, **settings.to_env()}
     children = [subprocess.Popen([sys.executable, "-m", "backend.cli", "worker", "--parent-pid", str(os.getpid())],
                                  env=env) for _ in range(max(0, args.workers))]

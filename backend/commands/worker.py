@@ -31,6 +31,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from ..app.context import Context
     from ..queue.worker import run_worker
 
+    settings = settings_of(args)
+    Context.check_writable(settings.data_dir)
     return run_worker(settings_of(args), args.threads, args.parent_pid)

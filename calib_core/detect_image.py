@@ -1,8 +1,8 @@
 """Board corners in one image: decode, find, refine, judge. Never raises.
 
 Runs inside worker processes, so it takes a path and returns plain data.
-Chessboards: OpenCV's sector-based detector on the full pattern first, then
-the classic detector, then ``findChessboardCornersSBWithMeta`` with
+Chessboards: OpenCV's classic detector on the full pattern first (fast), then
+the sector-based one, then ``findChessboardCornersSBWithMeta`` with
 ``CALIB_CB_LARGER`` from a small seed, which grows over whatever part of the
 board is visible (partial boards). ChArUco: ``cv2.aruco.CharucoDetector``,
 whose ids are absolute, so partial boards come naturally.
@@ -128,15 +128,21 @@ def detect_gray(gray: np.ndarray, board: BoardSpec) -> ImageResult:
 def _chessboard(gray: np.ndarray, board: BoardSpec):
     """(ids, points, edge width px, reason if none)."""
     cols, rows = board.cols, board.rows
-    ok, corners, meta = cv2.findChessboardCornersSBWithMeta(gray, (cols, rows), SB_FLAGS)
-    grid = corners.reshape(*meta.shape, 2) if ok and meta is not None and meta.size == corners.shape[0] else None
+    # The classic detector first: on whole boards it is ~100x faster than the sector-based
+    # one, and after the final cornerSubPix (detect_gray) as accurate (rendered 9x6 views,
+    # exact corners: median 0.037 px either way). The sector-based one then takes the
+    # boards it misses (blur, strong distortion), and grows partial boards.
+    grid = None
+    ok, corners = cv2.findChessboardCorners(gray, (cols, rows), flags=CLASSIC_FLAGS)
+    if ok:
+        corners = corners.reshape(-1, 2)
+        half = _half_window(corners.reshape(rows, cols, 2))
+        corners = cv2.cornerSubPix(gray, corners.astype(np.float32), (half, half), (-1, -1), SUBPIX)
+        grid = corners.reshape(rows, cols, 2)
     if grid is None:
-        ok, corners = cv2.findChessboardCorners(gray, (cols, rows), flags=CLASSIC_FLAGS)
-        if ok:
-            corners = corners.reshape(-1, 2)
-            half = _half_window(corners.reshape(rows, cols, 2))
-            corners = cv2.cornerSubPix(gray, corners.astype(np.float32), (half, half), (-1, -1), SUBPIX)
-            grid = corners.reshape(rows, cols, 2)
+        ok, corners, meta = cv2.findChessboardCornersSBWithMeta(gray, (cols, rows), SB_FLAGS)
+        if ok and meta is not None and meta.size == corners.shape[0]:
+            grid = corners.reshape(*meta.shape, 2)
     if grid is None:
         grid = _grown_grid(gray, cols, rows)
     if grid is None:

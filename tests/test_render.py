@@ -5,7 +5,9 @@ import numpy as np
 
 from backend.cli import main as cli
 from calib_core import render, synth
+from calib_core.board import BoardSpec
 from calib_core.corner_error import corner_errors
+from calib_core.detect_image import detect_gray
 from calib_core.observations import Observations
 
 
@@ -36,3 +38,18 @@ def test_rendered_images_detect_within_a_tenth_of_a_pixel(tmp_path, capsys):
     assert err["p95"] <= 0.25, err["p95"]
     assert err["n_wrong"] <= 0.02 * err["n"]                   # corners off the board's lattice
     assert err["min_lattice_agreement"] >= 0.95  # partial-grid ids: one lattice motion of the truth's (1.0 today)
+
+
+def test_whole_board_views_get_the_true_ids_and_corners():
+    """A 9x6 board seen whole: ids are absolute, so each corner is checked against its own truth."""
+    board = BoardSpec.parse("chessboard:9x6:50mm")
+    rng = np.random.default_rng(1)
+    errs = []
+    for k, tilt in enumerate(np.radians([[0.0, 0.0], [25.0, -15.0]])):
+        pose = synth._pose_looking_at(np.array([200.0, 125.0, 0.0]), 800.0, tilt, 0.3 * k)
+        img = render.render_view("radial", pose, (9, 6), 50.0, rng=rng)
+        ids, _, uv = render.true_corners("radial", pose, (9, 6), 50.0)
+        res = detect_gray(img, board)
+        assert res.status == "used" and res.ids.tolist() == ids.tolist() == list(range(54))
+        errs.append(np.linalg.norm(res.points - uv, axis=1))
+    assert np.median(errs) <= 0.1 and np.max(errs) < 0.3

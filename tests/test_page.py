@@ -136,10 +136,16 @@ def test_upload_watch_review_download_and_3d(browser, service, shots):
         assert name in nodes, name
     boards = {n.split("/")[2] for n in nodes if n.startswith("/boards/") and n.endswith("/corners")}
     assert len(boards) == len(cal.views)
-    page.wait_for_timeout(4000)  # let WebGL (SwiftShader) draw a few frames before the screenshot
-    notice = frame.content_frame().locator("[class*=Notification] button")  # viser's software-WebGL notice
+    view = frame.content_frame()
+    notice = view.locator("[class*=Notification] button")  # viser's software-WebGL notice
     if notice.count():
         notice.first.click()
+    # the panel's surface control reaches this tab's scene
+    view.get_by_label("Surfaces").click()
+    view.get_by_role("option", name="Δy", exact=True).click()
+    wait_for(lambda: (scene() or {}).get("component") == "Δy", 20, "the Surfaces control to switch to Δy",
+             service.logs())
+    page.wait_for_timeout(3000)  # let WebGL (SwiftShader) draw a few frames before the screenshot
     page.screenshot(path=shots / "06-viewer.png")
 
     wide = browser.new_page(viewport={"width": 1920, "height": 1080})

@@ -112,7 +112,7 @@ def build_scene(scene: Any, result: JobResult, component: str = COMPONENTS[0]) -
         err = np.hypot(*b.residuals.T)
         spacing = _spacing(b.object_points) * scale
         add(base + "/corners", scene.add_point_cloud(
-            base + "/corners", pts, colors=colormap.sequential(err, vmax), point_size=spacing * 0.3,
+            base + "/corners", pts, colors=colormap.sequential(err, vmax), point_size=spacing * 0.22,
             point_shape="circle", point_shading="flat"))
         lo, hi = b.object_points.min(axis=0) * scale, b.object_points.max(axis=0) * scale
         box = np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0], [lo[0], hi[1], 0]])

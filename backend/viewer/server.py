@@ -150,6 +150,7 @@ def _legend(result: data.JobResult, built: Built) -> str:
         f" vectors ×{lg.get('vector_gain', 0):.0f}",
         f"- surfaces: Δx, Δy (observed − ideal pixel), blue −{lg.get('field_max_px', 0):.1f} px … red "
         f"+{lg.get('field_max_px', 0):.1f} px (98th percentile; beyond it clipped)",
-        f"- orange lines: knot grid on the ideal image plane; 1 scene unit = {lg.get('scene_unit', 0):.0f} "
-        f"{result.units}",
+        "- orange lines: knot grid on the ideal image plane" if "/image_plane/knots" in built.handles
+        else "- grey rectangle: the ideal image plane (no knots: not a B-spline method)",
+        f"- 1 scene unit = {lg.get('scene_unit', 0):.0f} {result.units} (the median board distance)",
     ])

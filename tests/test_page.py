@@ -57,8 +57,13 @@ def shots():
     return SHOTS
 
 
-def test_upload_watch_review_download_and_3d(browser, service, shots):
+def test_upload_watch_review_download_and_3d(browser, service, shots, tmp_path):
+    import cv2
+    import numpy as np
+
     images = sorted(shared_data("opencv-stereo-9x6").glob("left*.jpg"))
+    blank = tmp_path / "no-board.jpg"   # a photo without the board: rejected, with the reason shown
+    cv2.imwrite(str(blank), np.full((480, 640, 3), 128, np.uint8))
     base = f"http://127.0.0.1:{service.port}"
     page = browser.new_page(viewport={"width": 1366, "height": 768}, accept_downloads=True)
     errors: list[str] = []
@@ -72,7 +77,7 @@ def test_upload_watch_review_download_and_3d(browser, service, shots):
     page.wait_for_selector("#error:not([hidden])")
     assert "files" in page.text_content("#error")
 
-    page.set_input_files("#files", [str(p) for p in images])
+    page.set_input_files("#files", [str(p) for p in images] + [str(blank)])
     page.select_option("#method", "bspline")
     page.click("#settings summary")
     for key, value in SETTINGS.items():
@@ -86,8 +91,10 @@ def test_upload_watch_review_download_and_3d(browser, service, shots):
     page.wait_for_function("document.querySelector('#set-progress-label').textContent.startsWith('ready')",
                            timeout=90_000)
     thumbs = page.locator("#images li")
-    assert thumbs.count() == len(images)
+    assert thumbs.count() == len(images) + 1
     assert page.locator("#images li.used").count() >= len(images) - 2
+    rejected = page.locator("#images li.rejected", has_text="no-board.jpg")
+    assert rejected.count() == 1 and len(rejected.locator("div.rejected").text_content()) > 5  # ✗ and a reason
     page.wait_for_selector("#job-detail:not([hidden])", timeout=30_000)
     page.screenshot(path=shots / "03-detection-and-job.png")
 

@@ -30,7 +30,7 @@ export function renderSet(set) {
     (set.image_size ? ` · ${set.image_size[0]}×${set.image_size[1]} px` : "") + (set.error ? ` · ${set.error}` : "");
   const warn = document.getElementById("set-warnings");
   warn.hidden = !set.warnings.length;
-  warn.textContent = set.warnings.join(" ");
+  warn.replaceChildren(...set.warnings.map((w) => el("span", { style: "display:block" }, w)));
   const ul = document.getElementById("images");
   ul.replaceChildren(...(set.images || []).map((im) => el("li", { class: im.status },
     el("img", { src: thumbUrl(set.id, im.name), alt: `thumbnail of ${im.name}`, loading: "lazy", width: 150, height: 112 }),

@@ -140,8 +140,7 @@ def expand(grid: np.ndarray, sr: np.ndarray, sc: np.ndarray) -> tuple[np.ndarray
 
     h, w = grid.shape[:2]
     r0, fr, at_r = positions(sr, h)
-    c0, fc = positions(sc, w)[:2]
-    at_c = np.concatenate([[0], np.cumsum(sc)])
+    c0, fc, at_c = positions(sc, w)
     fr, fc = fr[:, None, None], fc[None, :, None]
     full = ((1 - fr) * (1 - fc) * grid[r0][:, c0] + (1 - fr) * fc * grid[r0][:, c0 + 1]
             + fr * (1 - fc) * grid[r0 + 1][:, c0] + fr * fc * grid[r0 + 1][:, c0 + 1])

@@ -4,7 +4,7 @@ import { el } from "./format.js";
 
 const BSPLINE = [
   { key: "knots", label: "Knot placement", options: ["kde", "kde-paper", "uniform"], def: "kde" },
-  { key: "intervals", label: "Knot intervals (per axis)", placeholder: "auto (GCV)", type: "text" },
+  { key: "intervals", label: "Intervals per axis", placeholder: "auto (GCV)", type: "text" },
   { key: "bandwidth", label: "KDE bandwidth", options: ["scott", "silverman"], def: "scott" },
   { key: "window_ratio", label: "Window ratio", placeholder: "0.05", type: "number" },
   { key: "weighting", label: "Weighting", options: ["local_std", "uniform", "magnitude", "gradient"], def: "local_std" },

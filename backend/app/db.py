@@ -81,6 +81,11 @@ class Database:
         with self.connect() as con:
             con.execute("PRAGMA journal_mode=WAL")
             con.executescript(SCHEMA)
+        # Held open, never used: SQLite checkpoints and deletes the WAL when the *last* connection
+        # closes, so with a connection per unit of work a status read could pay for a checkpoint
+        # (an fsync of the database, seconds on a busy disk). With this one open, checkpoints
+        # happen only inside writers' commits, and reads stay cheap.
+        self._keeper = sqlite3.connect(self.path, check_same_thread=False)
 
     @contextmanager
     def connect(self) -> Iterator[sqlite3.Connection]:

@@ -52,6 +52,9 @@ class Settings:
     max_jobs_per_client: int = 20
     # A job running longer than this (seconds) is stopped and failed with the reason (0 = no limit).
     job_timeout: float = 1800.0
+    # Workers run at this niceness (0-19): a calibration yields the CPU to the API's requests,
+    # so status reads stay fast while jobs run on the same cores (0: same priority).
+    worker_nice: int = 10
 
     @property
     def db_path(self) -> Path:

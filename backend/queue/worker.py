@@ -25,6 +25,11 @@ def run_worker(settings: Settings, threads: int | None = None, parent_pid: int |
     # OpenCV refuses to decode more pixels than the upload limit (TIFF/WebP bombs whose header
     # the API does not read); detection processes inherit it. Must precede cv2's import.
     os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(settings.max_image_pixels))
+    if settings.worker_nice > 0:
+        try:
+            os.nice(settings.worker_nice)
+        except OSError:  # not permitted here: run at the normal priority
+            pass
     from threadpoolctl import threadpool_limits
 
     if settings.blas_threads > 0:  # 0: the libraries' default (one thread per core)

@@ -12,7 +12,10 @@ WORKDIR /app
 COPY pyproject.toml README.md ./
 COPY calib_core ./calib_core
 COPY backend ./backend
+COPY frontend ./frontend
 RUN pip install --upgrade pip && pip install .
+# the page is served from this folder (an installed package does not carry it)
+ENV FREECAL_FRONTEND_DIR=/app/frontend
 
 # a non-root user owning the shared data volume
 RUN useradd --create-home --uid 1000 freecal && mkdir -p /data && chown freecal /data

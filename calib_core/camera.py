@@ -11,6 +11,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 BASES = ("pinhole", "equidistant", "stereographic")
+# A pinhole maps a ray θ off axis to tan θ: past this angle the ideal image runs
+# off towards infinity, and pinhole-based models exclude such corners.
+PINHOLE_MAX_ANGLE_DEG = 85.0
 
 
 def rotate(rvecs: np.ndarray, points: np.ndarray) -> np.ndarray:

@@ -38,9 +38,7 @@ from .common import Fit, Progress
 from .fisheye import FisheyeSettings, fit_fisheye
 from .opencv import RationalSettings, fit_opencv
 
-# A pinhole base maps a ray θ off axis to tan θ: past this angle the ideal
-# image runs off to infinity and the field cannot be fitted there.
-PINHOLE_MAX_ANGLE_DEG = 85.0
+PINHOLE_MAX_ANGLE_DEG = camera.PINHOLE_MAX_ANGLE_DEG
 DOMAIN_MARGIN = 0.02  # of the domain's span, on every side
 AUTO = "auto"
 AUTO_INTERVALS = (6, 8, 10, 12, 15)

@@ -22,7 +22,7 @@ from .common import Fit, Progress
 
 # A pinhole model maps a ray θ off axis to tan θ: past this angle it cannot
 # represent the corner (formats.md: the opencv type is pinhole-based).
-MAX_ANGLE_DEG = 85.0
+MAX_ANGLE_DEG = camera.PINHOLE_MAX_ANGLE_DEG
 
 
 @dataclass

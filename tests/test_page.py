@@ -28,7 +28,7 @@ ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox"
         "--disable-component-update", "--disable-sync", "--no-first-run"]
 SHOTS = ROOT / "test-artifacts" / "page"
 # a quick B-spline fit: the page test is about the page, not the method
-SETTINGS = {"knots": "uniform", "intervals": "5x4", "lambda_smooth": "0.1", "max_iterations": "30"}
+SETTINGS = {"knots": "uniform", "lambda_smooth": "0.1", "max_iterations": "30"}  # intervals: auto (GCV)
 
 
 @pytest.fixture(scope="module")
@@ -104,6 +104,9 @@ def test_upload_watch_review_download_and_3d(browser, service, shots, tmp_path):
     rmse_cell = page.text_content("#metrics-overall tbody td")
     assert rmse_cell.endswith(" px") and 0 < float(rmse_cell.split()[0]) < 1.5
     assert page.locator("#metrics-views tbody tr").count() >= len(images) - 2
+    # the B-spline's knot grid was chosen from the data: the GCV curve is shown, one row chosen
+    assert page.locator("#metrics-smoothing tbody tr").count() >= 2
+    assert page.locator("#metrics-smoothing tbody tr.best").count() == 1
     # the heatmap is drawn (many colours), and hovering it tells a value with its unit
     colours = page.eval_on_selector("#fig-heatmap canvas", """c => {
         const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data, seen = new Set();

@@ -7,7 +7,7 @@ import { heatmapFigure } from "./plots/heatmap.js";
 import { knotsFigure } from "./plots/knots.js";
 import { uncertaintyFigure } from "./plots/uncertainty.js";
 import { vectorsFigure } from "./plots/vectors.js";
-import { overallTable, viewsTable } from "./tables.js";
+import { overallTable, smoothingTable, viewsTable } from "./tables.js";
 import { renderViewer } from "./viewer.js";
 
 const LABELS = {
@@ -24,16 +24,18 @@ export async function renderResults(job, set) {
   document.getElementById("results-title").textContent = `3. Results of job ${job.id}: ${method}`;
   renderDownloads(job.downloads);
   const has = (n) => n in job.downloads;
-  const [comparison, views, corners, heatmap, field, knots] = await Promise.all([
+  const [comparison, views, corners, heatmap, field, knots, calibration] = await Promise.all([
     api.file(job.id, "comparison.json"), has("view_residuals.json") ? api.file(job.id, "view_residuals.json") : [],
     has("corner_residuals.json") ? api.file(job.id, "corner_residuals.json") : [],
     has("heatmap.json") ? api.file(job.id, "heatmap.json") : null,
     has("distortion_field.json") ? api.file(job.id, "distortion_field.json") : null,
     has("knots.json") ? api.knotCells(job.id) : null,
+    has("calibration.json") ? api.file(job.id, "calibration.json") : null,
   ]);
   const metrics = document.getElementById("metrics");
   const who = job.method === "compare" ? ` (${job.summary.verdict})` : "";
-  metrics.replaceChildren(overallTable(comparison), views.length ? viewsTable(views, `Per view${who}`) : "");
+  metrics.replaceChildren(overallTable(comparison), views.length ? viewsTable(views, `Per view${who}`) : "",
+    calibration ? smoothingTable(calibration) : "");
   const imageSize = heatmap ? heatmap.image_size : set && set.image_size;
   const figs = [];
   if (heatmap) figs.push(heatmapFigure({ heatmap, corners, views }));

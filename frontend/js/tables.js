@@ -39,3 +39,19 @@ export function viewsTable(views, title) {
       el("td", {}, px(v.rmse)), el("td", {}, px(v.rmse_axis)), el("td", {}, px(v.max_error)), el("td", {}, num(v.outliers))))));
   return el("div", { class: "table-wrap scroll-y" }, table);
 }
+
+/** The B-spline's knot-grid choice: GCV score per grid (lower predicts corners better). */
+export function smoothingTable(calibration) {
+  const curve = (calibration.diagnostics || {}).smoothing_curve || [];
+  if (!curve.length) return "";
+  const chosen = JSON.stringify((calibration.settings || {}).intervals_used);
+  const table = el("table", { id: "metrics-smoothing" },
+    el("caption", {}, "Knot grid chosen from the data (generalised cross-validation)"),
+    el("thead", {}, el("tr", {}, ["knot grid", "smoothing λ", "GCV score [px²]", "effective parameters", ""]
+      .map((h) => el("th", { scope: "col" }, h)))),
+    el("tbody", {}, curve.map((c) => el("tr", { class: JSON.stringify(c.intervals) === chosen ? "best" : "" },
+      el("th", { scope: "row" }, c.intervals.join(" × ")), el("td", {}, num(c.lambda_smooth, 3)),
+      el("td", {}, num(c.gcv, 4)), el("td", {}, num(c.dof, 0)),
+      el("td", {}, JSON.stringify(c.intervals) === chosen ? "chosen" : "")))));
+  return el("div", { class: "table-wrap" }, table);
+}

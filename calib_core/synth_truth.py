@@ -37,6 +37,9 @@ class TruthModel(CameraModel):
     def params(self) -> np.ndarray:
         return np.zeros(0)
 
+    def with_params(self, x: np.ndarray) -> "TruthModel":
+        return self  # the truth has nothing to fit
+
     def _uv(self, xn: np.ndarray) -> np.ndarray:
         return synth.true_project(self.lens, np.column_stack([xn, np.ones(len(xn))]))
 

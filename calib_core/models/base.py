@@ -10,6 +10,7 @@ row 1 for v. Entries may repeat a column with value 0 (padding).
 """
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
 import numpy as np
@@ -17,33 +18,37 @@ import numpy as np
 from .. import camera
 
 
-class CameraModel:
+class CameraModel(ABC):
     kind: ClassVar[str]  # the distortion.type it writes
     base: str = "pinhole"
     intrinsics: np.ndarray  # [fx, fy, cx, cy, skew]
 
     # ---- what each model provides -------------------------------------------
     @property
+    @abstractmethod
     def n_params(self) -> int:
-        raise NotImplementedError
+        """Number of fitted parameters."""
 
+    @abstractmethod
     def params(self) -> np.ndarray:
-        raise NotImplementedError
+        """The fitted parameters (n_params,)."""
 
+    @abstractmethod
     def with_params(self, x: np.ndarray) -> "CameraModel":
-        raise NotImplementedError
+        """The same model with parameters ``x`` (a new object)."""
 
+    @abstractmethod
     def pixel_of(self, xn: np.ndarray, jacobian: bool = False):
         """Pixels (N, 2) of normalised coordinates (N, 2); with ``jacobian`` also
         ∂uv/∂xn (N, 2, 2) and the parameter Jacobian ``cols, vals``."""
-        raise NotImplementedError
 
     def prior(self):
         """Extra residual rows linear in the parameters, ``(r, J)``, or None."""
         return None
 
+    @abstractmethod
     def distortion_json(self) -> dict[str, Any]:
-        raise NotImplementedError
+        """The ``distortion`` object of formats.md."""
 
     # ---- shared ---------------------------------------------------------------
     def project(self, pc: np.ndarray, jacobian: bool = False):
@@ -136,6 +141,29 @@ class ParametricModel(CameraModel):
 
     def with_params(self, x: np.ndarray) -> "ParametricModel":
         return type(self)(np.append(x[:4], 0.0), x[4:])
+
+    @abstractmethod
+    def distort_normalised(self, xn: np.ndarray, jacobian: bool = False):
+        """Distorted normalised coordinates ``xd`` (N, 2); with ``jacobian`` also
+        ∂xd/∂xn (N, 2, 2) and ∂xd/∂coefficients (N, 2, ≥ n)."""
+
+    def pixel_of(self, xn: np.ndarray, jacobian: bool = False):
+        fx, fy, cx, cy, _ = self.intrinsics
+        if not jacobian:
+            xd = self.distort_normalised(xn)
+            return np.stack([fx * xd[:, 0] + cx, fy * xd[:, 1] + cy], axis=-1)
+        xd, d_xd, d_k = self.distort_normalised(xn, jacobian=True)
+        uv = np.stack([fx * xd[:, 0] + cx, fy * xd[:, 1] + cy], axis=-1)
+        f = np.array([fx, fy])
+        n, nk = len(xn), len(self.coefficients)
+        cols = np.empty((n, 2, 2 + nk), dtype=np.int64)
+        vals = np.empty((n, 2, 2 + nk))
+        cols[:, 0, :2], cols[:, 1, :2] = (0, 2), (1, 3)  # u: fx, cx; v: fy, cy
+        cols[:, :, 2:] = 4 + np.arange(nk)
+        vals[:, 0, 0], vals[:, 0, 1] = xd[:, 0], 1.0
+        vals[:, 1, 0], vals[:, 1, 1] = xd[:, 1], 1.0
+        vals[:, :, 2:] = f[None, :, None] * d_k[:, :, :nk]
+        return uv, f[None, :, None] * d_xd, cols, vals
 
 
 def intrinsics_jacobian(xn: np.ndarray, a: np.ndarray) -> np.ndarray:

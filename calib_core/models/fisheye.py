@@ -31,26 +31,15 @@ class FisheyeModel(ParametricModel):
         dpoly = (np.arange(1, len(k) + 1) * k * np.hstack([np.ones((len(q), 1)), powers[:, :-1]])).sum(axis=1)
         return poly, dpoly, powers
 
-    def pixel_of(self, xn: np.ndarray, jacobian: bool = False):
-        fx, fy, cx, cy, _ = self.intrinsics
-        q = np.sum(xn * xn, axis=-1)
-        poly, dpoly, powers = self._poly(q)
+    def distort_normalised(self, xn: np.ndarray, jacobian: bool = False):
+        """xd = xn · (1 + k1 |xn|² + …) (N, 2); with ``jacobian`` also ∂xd/∂xn
+        (N, 2, 2) and ∂xd/∂k (N, 2, n)."""
+        poly, dpoly, powers = self._poly(np.sum(xn * xn, axis=-1))
         xd = xn * poly[:, None]
-        uv = np.stack([fx * xd[:, 0] + cx, fy * xd[:, 1] + cy], axis=-1)
         if not jacobian:
-            return uv
-        n, nk = len(xn), len(self.coefficients)
-        m = poly[:, None, None] * np.eye(2) + 2.0 * dpoly[:, None, None] * xn[:, :, None] * xn[:, None, :]
-        d_xn = np.array([fx, fy])[None, :, None] * m
-        cols = np.empty((n, 2, 2 + nk), dtype=np.int64)
-        vals = np.empty((n, 2, 2 + nk))
-        cols[:, 0, :2], cols[:, 1, :2] = (0, 2), (1, 3)
-        cols[:, :, 2:] = 4 + np.arange(nk)
-        vals[:, 0, 0], vals[:, 0, 1] = xd[:, 0], 1.0
-        vals[:, 1, 0], vals[:, 1, 1] = xd[:, 1], 1.0
-        vals[:, 0, 2:] = fx * xn[:, :1] * powers
-        vals[:, 1, 2:] = fy * xn[:, 1:] * powers
-        return uv, d_xn, cols, vals
+            return xd
+        d_xn = poly[:, None, None] * np.eye(2) + 2.0 * dpoly[:, None, None] * xn[:, :, None] * xn[:, None, :]
+        return xd, d_xn, xn[:, :, None] * powers[:, None, :]
 
     def distortion_json(self) -> dict[str, Any]:
         return {"type": "fisheye", "coefficients": self.coefficients.tolist()}

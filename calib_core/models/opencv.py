@@ -115,24 +115,6 @@ class OpenCVModel(ParametricModel):
         d_k[:, :, 13] = np.einsum("nij,nj->ni", j_h, p3 @ dm_y.T)
         return out, d_xn, d_k
 
-    def pixel_of(self, xn: np.ndarray, jacobian: bool = False):
-        fx, fy, cx, cy, _ = self.intrinsics
-        if not jacobian:
-            xd = self.distort_normalised(xn)
-            return np.stack([fx * xd[:, 0] + cx, fy * xd[:, 1] + cy], axis=-1)
-        xd, d_xd, d_k = self.distort_normalised(xn, jacobian=True)
-        uv = np.stack([fx * xd[:, 0] + cx, fy * xd[:, 1] + cy], axis=-1)
-        f = np.array([fx, fy])
-        n, nk = len(xn), len(self.coefficients)
-        cols = np.empty((n, 2, 2 + nk), dtype=np.int64)
-        vals = np.empty((n, 2, 2 + nk))
-        cols[:, 0, :2], cols[:, 1, :2] = (0, 2), (1, 3)
-        cols[:, :, 2:] = 4 + np.arange(nk)
-        vals[:, 0, 0], vals[:, 0, 1] = xd[:, 0], 1.0
-        vals[:, 1, 0], vals[:, 1, 1] = xd[:, 1], 1.0
-        vals[:, :, 2:] = f[None, :, None] * d_k[:, :, :nk]
-        return uv, f[None, :, None] * d_xd, cols, vals
-
     def distortion_json(self) -> dict[str, Any]:
         return {"type": "opencv", "coefficients": self.coefficients.tolist()}
 

@@ -9,6 +9,7 @@ import time
 from typing import Any
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 from threadpoolctl import threadpool_limits
 
 from . import metrics
@@ -125,12 +126,23 @@ def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Cal
         "iterations": res.iterations, "status": res.status, "message": res.message,
         "cost": res.cost, "n_unknowns": n_unknowns, "seconds": time.perf_counter() - t0,
     }
+    diagnostics["coverage_hull"] = coverage_hull(data.image_points[inlier])
     diagnostics["excluded_points"] = {"outliers": int(outlier.sum()), "outside_model": int(fit.excluded.sum())}
     if fit.excluded.any():
         diagnostics["excluded_points"]["outside_model_reason"] = fit.excluded_reason
     settings_out = {"method": method, "outlier_sigma": outlier_sigma, **fit.settings}
     progress("done", 1.0)
     return Calibration(res.model, obs.image_size, method, views, dropped, summary, settings_out, diagnostics)
+
+
+def coverage_hull(pixels: np.ndarray) -> list[list[float]]:
+    """The convex hull (M, 2) of the corners used: where the calibration has
+    data, so that what is derived from it (lean-model exports) stays there."""
+    try:
+        hull = ConvexHull(pixels)
+    except (QhullError, ValueError):
+        return []
+    return np.round(pixels[hull.vertices], 2).tolist()
 
 
 def _residuals(res, data: Data) -> np.ndarray:

@@ -87,11 +87,14 @@ def sample_grid(cal: Calibration, grid: tuple[int, int] = GRID, max_angle_deg: f
 
 def fit_lean(cal: Calibration, name: str, grid: tuple[int, int] = GRID, covered: np.ndarray | None = None) -> LeanFit:
     """Fit the lean model ``name`` (a key of ``LEAN_MODELS``) to ``cal``'s projection over
-    the image, or over the convex hull of ``covered`` (M, 2) pixels (e.g. the
-    observed corners: where the calibration has data)."""
+    the convex hull of ``covered`` (M, 2) pixels (e.g. the observed corners: where
+    the calibration has data); by default the hull the calibration recorded
+    (``diagnostics.coverage_hull``), or the whole image if it has none."""
     if name not in LEAN_MODELS:
         raise SettingsError(f"lean model: expected one of {sorted(LEAN_MODELS)}, got {name!r}")
     kind, n = LEAN_MODELS[name]
+    if covered is None and len(cal.diagnostics.get("coverage_hull", [])) >= 3:
+        covered = np.asarray(cal.diagnostics["coverage_hull"])  # where the calibration had corners
     u, v, rays, ok = sample_grid(cal, grid, covered=covered)
     if ok.sum() < 50:
         raise LeanFitError(f"only {int(ok.sum())} rays of the image could be unprojected; too few to fit {name}")

@@ -33,6 +33,12 @@ def principal_samples(model: CameraModel) -> tuple[np.ndarray, np.ndarray]:
         uv, d_uv, _, _ = model.pixel_of(xn, jacobian=True)
         det = d_uv[:, 0, 0] * d_uv[:, 1, 1] - d_uv[:, 0, 1] * d_uv[:, 1, 0]
     ok = (np.isfinite(det) & (det > 0) & np.all(np.isfinite(uv), axis=1)).reshape(N_PHI, N_THETA)
+    # The branch also ends where the pixel stops moving away from the axis's
+    # pixel: a rational denominator's pole flips the image through infinity
+    # with det > 0 on both sides, which the fold test alone cannot see.
+    radius = np.linalg.norm(uv.reshape(N_PHI, N_THETA, 2) - uv.reshape(N_PHI, N_THETA, 2)[:, :1], axis=-1)
+    with np.errstate(invalid="ignore"):
+        ok[:, 1:] &= np.diff(radius, axis=1) > 0
     branch = np.cumprod(ok, axis=1).astype(bool).ravel()  # up to the first fold along each azimuth
     return xn[branch], uv[branch]
 

@@ -9,6 +9,7 @@ test-artifacts/page/ at 1366x768, and the results also at 1920x1080.
 """
 from __future__ import annotations
 
+import io
 import json
 import os
 import shutil
@@ -107,6 +108,16 @@ def test_upload_watch_review_download_and_3d(browser, service, shots, tmp_path):
     # the B-spline's knot grid was chosen from the data: the GCV curve is shown, one row chosen
     assert page.locator("#metrics-smoothing tbody tr").count() >= 2
     assert page.locator("#metrics-smoothing tbody tr.best").count() == 1
+    # the calibration used: Table 7 for raw and rectified boards, a rectified photo, the maps
+    page.wait_for_selector("#metrics-quality", timeout=60_000)
+    raw, rect = [float(page.text_content(f"#metrics-quality tbody tr:nth-child({i}) td")) for i in (1, 2)]
+    assert rect < raw  # rectified board lines are straighter than the photo's
+    page.wait_for_function("document.querySelector('#rectified-after') && "
+                           "document.querySelector('#rectified-after').naturalWidth > 0", timeout=60_000)
+    maps = page.request.get(base + page.get_attribute("#downloads a[data-file='maps.npz']", "href"))
+    assert maps.ok
+    with np.load(io.BytesIO(maps.body())) as npz:
+        assert npz["map_x"].dtype == np.float32 and npz["map_x"].shape == npz["map_y"].shape
     # the heatmap is drawn (many colours), and hovering it tells a value with its unit
     colours = page.eval_on_selector("#fig-heatmap canvas", """c => {
         const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data, seen = new Set();

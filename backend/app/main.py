@@ -21,7 +21,7 @@ from .context import Context
 from .limits import BodyLimit
 from . import frontend
 from .security import ClientQuota, TokenDep, install_cors, install_docs
-from .routers import figures, health, images, jobs, sets, viewer
+from .routers import figures, health, images, jobs, rectified, sets, viewer
 from .settings import Settings
 
 log = logging.getLogger("freecal.api")
@@ -65,7 +65,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     errors.install(app)
     app.add_middleware(BodyLimit, max_bytes=settings.max_upload_bytes + 1024 * 1024)  # + multipart overhead
     install_cors(app, settings.cors_origins)
-    for module in (sets, images, jobs, figures, viewer, health):
+    for module in (sets, images, rectified, jobs, figures, viewer, health):  # rectified before jobs: its maps.npz beats /{file}
         app.include_router(module.router, dependencies=[TokenDep])  # FREECAL_TOKEN, when set
     install_docs(app)
     frontend.mount(app)  # last: the page at / never shadows /api or /docs

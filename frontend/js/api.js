@@ -36,6 +36,8 @@ export const api = {
   file: (id, name) => request("GET", `/api/jobs/${id}/${name}`),
   knotCells: (id) => request("GET", `/api/jobs/${id}/figures/knot-cells`),
   uncertainty: (id) => request("GET", `/api/jobs/${id}/figures/uncertainty`),
+  quality: (id) => request("GET", `/api/jobs/${id}/figures/quality`),
+  rectifiedUrl: (id, name) => `/api/jobs/${id}/rectified/${encodeURIComponent(name)}`,
   viewer: () => request("GET", "/api/viewer"),
   openViewer: (jobId) => request("POST", "/api/viewer", { job_id: jobId }),
 };

@@ -5,9 +5,10 @@ import { coverageFigure } from "./plots/coverage.js";
 import { fieldMapFigure, fieldVectorsFigure } from "./plots/field.js";
 import { heatmapFigure } from "./plots/heatmap.js";
 import { knotsFigure } from "./plots/knots.js";
+import { rectifiedFigure } from "./plots/rectified.js";
 import { uncertaintyFigure } from "./plots/uncertainty.js";
 import { vectorsFigure } from "./plots/vectors.js";
-import { overallTable, smoothingTable, viewsTable } from "./tables.js";
+import { overallTable, qualityTable, smoothingTable, viewsTable } from "./tables.js";
 import { renderViewer } from "./viewer.js";
 
 const LABELS = {
@@ -22,7 +23,7 @@ export async function renderResults(job, set) {
   section.hidden = false;
   const method = job.method === "compare" ? `compare (figures: ${job.summary.verdict || "none"})` : job.method;
   document.getElementById("results-title").textContent = `3. Results of job ${job.id}: ${method}`;
-  renderDownloads(job.downloads);
+  renderDownloads(job.downloads, job);
   const has = (n) => n in job.downloads;
   const [comparison, views, corners, heatmap, field, knots, calibration] = await Promise.all([
     api.file(job.id, "comparison.json"), has("view_residuals.json") ? api.file(job.id, "view_residuals.json") : [],
@@ -43,19 +44,26 @@ export async function renderResults(job, set) {
   if (field) figs.push(fieldMapFigure({ field }), fieldVectorsFigure({ field }));
   if (knots) figs.push(knotsFigure({ knots, imageSize }));
   if (set && set.coverage && imageSize) figs.push(coverageFigure({ coverage: set.coverage, imageSize }));
+  if (set && calibration) figs.push(rectifiedFigure({ job, set }));
   const plots = document.getElementById("plots");
   plots.replaceChildren(...figs);
   await renderViewer(job);
+  if (calibration) {
+    try { metrics.append(qualityTable(await api.quality(job.id))); }
+    catch (e) { metrics.append(el("p", { class: "muted" }, `Geometric quality not available: ${e.message}`)); }
+  }
   // computed on request (about a second): drawn last, and its failure is a note, not an error
   try { plots.append(uncertaintyFigure({ unc: await api.uncertainty(job.id) })); }
   catch (e) { plots.append(el("p", { class: "muted" }, `Uncertainty map not available: ${e.message}`)); }
 }
 
-function renderDownloads(downloads) {
+function renderDownloads(downloads, job) {
   const box = document.getElementById("downloads");
   const order = Object.keys(LABELS).filter((n) => n in downloads).concat(Object.keys(downloads).filter((n) => !(n in LABELS)));
+  const maps = "calibration.json" in downloads
+    ? el("a", { href: `/api/jobs/${job.id}/maps.npz`, download: "", "data-file": "maps.npz" }, "Undistortion maps (NPZ)") : "";
   box.replaceChildren(el("strong", {}, "Download:"), ...order.map((n) =>
-    el("a", { href: downloads[n], download: "", "data-file": n }, LABELS[n] || n)));
+    el("a", { href: downloads[n], download: "", "data-file": n }, LABELS[n] || n)), maps);
 }
 
 export function hideResults() { document.getElementById("results").hidden = true; }

@@ -55,3 +55,19 @@ export function smoothingTable(calibration) {
       el("td", {}, JSON.stringify(c.intervals) === chosen ? "chosen" : "")))));
   return el("div", { class: "table-wrap" }, table);
 }
+
+/** The paper's Table 7 for the job's calibration and for the raw photos. */
+export function qualityTable(q) {
+  const rows = [["raw photos", q.raw], [`rectified by ${q.method}`, q.calibrated]];
+  const table = el("table", { id: "metrics-quality" },
+    el("caption", {}, "Geometric quality of the rectified boards (Table 7)"),
+    el("thead", {}, el("tr", {}, ["", "straightness [px]", "spacing CV", "orthogonality [°]", "field smoothness [1/px]"]
+      .map((h) => el("th", { scope: "col" }, h)))),
+    el("tbody", {}, rows.map(([label, r]) => el("tr", {}, el("th", { scope: "row" }, label),
+      el("td", {}, num(r.straightness, 3)), el("td", {}, num(r.spacing_cv, 4)), el("td", {}, num(r.orthogonality, 3)),
+      el("td", {}, num(r.smoothness, 5))))));
+  const note = el("p", { class: "muted" }, "Straightness: RMS distance of rectified corners from the line through " +
+    "their board row or column; spacing CV: spread of neighbour distances; orthogonality: mean departure of row " +
+    "and column lines from 90°. Lower is better in every column.");
+  return el("div", { class: "table-wrap" }, table, note);
+}

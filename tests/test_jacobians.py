@@ -54,21 +54,28 @@ def test_base_projection_jacobians(base):
         assert np.allclose(jac[i], num, rtol=1e-5, atol=1e-6)
 
 
-def test_full_jacobian_with_poses_matches_finite_differences():
-    model = next(models())
+POSES = np.array([[0.1, -0.2, 0.05, -200, -150, 500], [-0.3, 0.1, 0.2, -150, -100, 450],
+                  [0.2, 0.3, -0.1, -250, -120, 600.0]])
+
+
+def full_jacobian_pair(model, n_views: int, per_view: int):
+    """The assembled Jacobian over [model | poses] and its central finite
+    differences, for board points seen by ``n_views`` of POSES."""
     rng = np.random.default_rng(4)
-    obj = np.column_stack([rng.uniform(0, 400, 60), rng.uniform(0, 300, 60), np.zeros(60)])
-    vi = np.repeat([0, 1, 2], 20)
-    poses = np.array([[0.1, -0.2, 0.05, -200, -150, 500], [-0.3, 0.1, 0.2, -150, -100, 450], [0.2, 0.3, -0.1, -250, -120, 600.0]])
-    data = Data(obj, np.zeros((60, 2)), vi, 3)
-    r0, jac = _assemble(model, poses, data, SolveSettings())
-    n_model = model.n_params
-    x0 = model.params()
+    n = n_views * per_view
+    obj = np.column_stack([rng.uniform(0, 400, n), rng.uniform(0, 300, n), np.zeros(n)])
+    poses = POSES[:n_views]
+    data = Data(obj, np.zeros((n, 2)), np.repeat(np.arange(n_views), per_view), n_views)
+    _, jac = _assemble(model, poses, data, SolveSettings())
+    n_model, x0 = model.n_params, model.params()
 
     def residual(delta):
         m = model.with_params(x0 + delta[:n_model])
-        p = camera.retract_poses(poses, delta[n_model:].reshape(-1, 6))
-        return _assemble(m, p, data, SolveSettings())[0]
+        return _assemble(m, camera.retract_poses(poses, delta[n_model:].reshape(-1, 6)), data, SolveSettings())[0]
 
-    num = numeric(residual, np.zeros(n_model + 18), 1e-6)
-    assert np.allclose(jac.toarray(), num, rtol=1e-5, atol=2e-5)
+    return jac.toarray(), numeric(residual, np.zeros(n_model + 6 * n_views), 1e-6)
+
+
+def test_full_jacobian_with_poses_matches_finite_differences():
+    jac, num = full_jacobian_pair(next(models()), n_views=3, per_view=20)
+    assert np.allclose(jac, num, rtol=1e-5, atol=2e-5)

@@ -9,13 +9,14 @@ from calib_core.errors import SettingsError
 from calib_core.methods import METHODS
 from calib_core.methods.common import settings_from
 
-from ...queue.tasks import Queue, QueueUnavailable
+from ...queue.tasks import Queue
 from .. import storage
 from ..context import Context
 from ..errors import ApiError, not_found
 from ..repository import jobs, sets
 from ..schemas import JobCreate
 from . import sets as set_service
+from .enqueue import enqueue_or_undo
 from .ids import new_id
 
 COMPARE = "compare"
@@ -92,19 +93,13 @@ def create(ctx: Context, queue: Queue, body: JobCreate) -> str:
             raise ApiError(409, f"set {body.set_id} is {state}" + (f" ({error})" if error else "")
                            + ": create the job once GET /api/sets/{id} says ready")
     jobs.create(ctx.db, job_id, "calibrate", body.set_id, body.method, body.settings)
-    try:
-        queue.enqueue(job_id)
-    except QueueUnavailable as exc:
+
+    def undo() -> None:
         jobs.delete(ctx.db, job_id)
         ctx.storage.remove_job(job_id)
-        raise unavailable(ctx, exc) from None
+
+    enqueue_or_undo(ctx, queue, job_id, undo)
     return job_id
-
-
-def unavailable(ctx: Context, exc: Exception) -> ApiError:
-    where = f"Redis at {ctx.settings.redis_url}" if ctx.settings.queue == "redis" else "the SQLite queue"
-    return ApiError(503, f"the job queue ({where}) cannot take jobs right now ({exc}); "
-                         "check that it is running and retry")
 
 
 def get(ctx: Context, job_id: str) -> dict[str, Any]:

@@ -4,11 +4,12 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from ...queue.tasks import Queue, QueueUnavailable
+from ...queue.tasks import Queue
 from .. import storage, uploads
 from ..context import Context
 from ..errors import ApiError, not_found
 from ..repository import jobs, sets
+from .enqueue import enqueue_or_undo
 from .ids import new_id
 
 SET_STATE = {"queued": "queued", "running": "detecting", "done": "ready", "failed": "failed",
@@ -41,14 +42,12 @@ def create(ctx: Context, queue: Queue, files: list[uploads.Upload], board_spec: 
         raise
     job_id = new_id()
     jobs.create(ctx.db, job_id, "detect", set_id, None, {"board": board.to_spec()})
-    try:
-        queue.enqueue(job_id)
-    except QueueUnavailable as exc:
-        from .jobs import unavailable
 
+    def undo() -> None:
         sets.delete(ctx.db, set_id)
         ctx.storage.remove_set(set_id)
-        raise unavailable(ctx, exc) from None
+
+    enqueue_or_undo(ctx, queue, job_id, undo)
     return set_id
 
 

@@ -18,6 +18,7 @@ import time
 
 import numpy as np
 
+from backend.commands.output import table as print_table
 from calib_core import camera, synth
 from calib_core.compare import compare
 from calib_core.errors import CalibError
@@ -36,14 +37,7 @@ PAPER_T5 = "ours at σ = 0.1: 0.28 … 0.77 px; grows about linearly with σ"
 
 
 def table(headers, rows) -> None:
-    def fmt(v):
-        return f"{v:.3f}" if isinstance(v, float) else str(v)
-
-    cells = [[fmt(v) for v in r] for r in rows]
-    widths = [max(len(h), *(len(r[i]) for r in cells)) for i, h in enumerate(headers)]
-    print("  ".join(h.rjust(w) for h, w in zip(headers, widths)))
-    for r in cells:
-        print("  ".join(c.rjust(w) for c, w in zip(r, widths)))
+    print_table(headers, rows)
     print()
 
 

@@ -190,16 +190,19 @@ class BSplineField:
         """Offsets ``(Δx, Δy)`` at ``uv`` (..., 2) → (..., 2)."""
         uv = np.asarray(uv, dtype=np.float64)
         d = self.design(uv)
-        flat = self.control.reshape(-1, 2)
-        return np.einsum("nk,nkc->nc", d.w, flat[d.cols]).reshape(uv.shape)
+        return self._combine(d.w, d.cols).reshape(uv.shape)
 
     def evaluate(self, uv: np.ndarray):
         """Offsets (N, 2), their Jacobian (N, 2, 2) ``[[Δx_u, Δx_v], [Δy_u, Δy_v]]``, and the design."""
         d = self.design(uv, derivative=True)
-        c = self.control.reshape(-1, 2)[d.cols]  # (N, 16, 2)
-        offset = np.einsum("nk,nkc->nc", d.w, c)
-        jac = np.stack([np.einsum("nk,nkc->nc", d.w_u, c), np.einsum("nk,nkc->nc", d.w_v, c)], axis=-1)
-        return offset, jac, d
+        jac = np.stack([self._combine(d.w_u, d.cols), self._combine(d.w_v, d.cols)], axis=-1)
+        return self._combine(d.w, d.cols), jac, d
+
+    def _combine(self, weights: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Σ_k weights[n, k] · control[cols[n, k]] per component, (N, 2). One
+        component at a time: gathering (N, 16, 2) at once is 6x slower."""
+        flat = self.control.reshape(-1, 2)
+        return np.stack([np.einsum("nk,nk->n", weights, flat[:, c][cols]) for c in range(2)], axis=-1)
 
     def bending(self) -> sp.csr_matrix:
         """The smoothness operator of this knot grid (``bending_operator``)."""

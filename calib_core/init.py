@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from . import camera
 from .errors import DataError
@@ -78,38 +79,50 @@ def poses_from_rays(model: FisheyeModel, data: Data) -> np.ndarray | None:
     model's rays of the observed corners; None if some view cannot be posed."""
     xn = model.normalised_of_pixel(data.image_points, tol=1e-6)
     rays = camera.ray_of(xn, model.base)
-    poses = np.zeros((data.n_views, 6))
-    for k in range(data.n_views):
-        m = (data.view_index == k) & np.all(np.isfinite(rays), axis=1) & (rays[:, 2] > 0.2)
-        if m.sum() < 4:
+    usable = np.all(np.isfinite(rays), axis=1) & (rays[:, 2] > 0.2)
+    order = np.argsort(data.view_index, kind="stable")
+    starts = np.searchsorted(data.view_index[order], np.arange(data.n_views + 1))
+    homographies, centroids = np.zeros((data.n_views, 3, 3)), np.zeros((data.n_views, 3))
+    for k in range(data.n_views):  # one homography per view (OpenCV's, not vectorisable)
+        m = order[starts[k] : starts[k + 1]]
+        m = m[usable[m]]
+        if len(m) < 4:
             return None
-        proj = rays[m, :2] / rays[m, 2:]
         # Board coordinates about the observed centroid: better conditioned,
         # and the centroid must land in front of the camera.
-        centroid = data.object_points[m].mean(axis=0)
-        hmat, _ = cv2.findHomography(data.object_points[m, :2] - centroid[:2], proj, 0)
+        centroids[k] = data.object_points[m].mean(axis=0)
+        hmat, _ = cv2.findHomography(data.object_points[m, :2] - centroids[k, :2], rays[m, :2] / rays[m, 2:], 0)
         if hmat is None:
             return None
-        lam = 2.0 / (np.linalg.norm(hmat[:, 0]) + np.linalg.norm(hmat[:, 1]))
-        r1, r2, t = lam * hmat[:, 0], lam * hmat[:, 1], lam * hmat[:, 2]
-        if t[2] < 0:
-            r1, r2, t = -r1, -r2, -t
-        u, _, vt = np.linalg.svd(np.column_stack([r1, r2, np.cross(r1, r2)]))
-        rot = u @ vt
-        if np.linalg.det(rot) < 0:
-            rot = u @ np.diag([1, 1, -1]) @ vt
-        poses[k, :3] = cv2.Rodrigues(rot)[0].ravel()
-        poses[k, 3:] = t - rot @ centroid
+        homographies[k] = hmat
+    # H ~ [r1 r2 t]: scale, orient in front of the camera, nearest rotation.
+    lam = 2.0 / (np.linalg.norm(homographies[:, :, 0], axis=1) + np.linalg.norm(homographies[:, :, 1], axis=1))
+    lam *= np.where(homographies[:, 2, 2] * lam < 0, -1.0, 1.0)
+    h = homographies * lam[:, None, None]
+    r1, r2, t = h[:, :, 0], h[:, :, 1], h[:, :, 2]
+    u, _, vt = np.linalg.svd(np.stack([r1, r2, np.cross(r1, r2)], axis=-1))
+    flip = np.where(np.linalg.det(u @ vt) < 0, -1.0, 1.0)
+    u[:, :, 2] *= flip[:, None]
+    rot = u @ vt
+    poses = np.zeros((data.n_views, 6))
+    poses[:, :3] = Rotation.from_matrix(rot).as_rotvec()
+    poses[:, 3:] = t - np.einsum("kij,kj->ki", rot, centroids)
     return poses
 
 
-def _subsample(data: Data, per_view: int, rng: np.random.Generator) -> Data:
+def _subsample(data: Data, max_views: int, per_view: int, rng: np.random.Generator) -> Data:
+    """At most ``per_view`` corners of each of at most ``max_views`` views
+    (spread over the set): enough to score and shape a camera, and the cost
+    no longer grows with the number of views."""
+    views = np.unique(np.linspace(0, data.n_views - 1, min(max_views, data.n_views)).round().astype(int))
     keep = []
-    for k in range(data.n_views):
+    for k in views:
         idx = np.flatnonzero(data.view_index == k)
         keep.append(idx if len(idx) <= per_view else np.sort(rng.choice(idx, per_view, replace=False)))
     keep = np.concatenate(keep)
-    return Data(data.object_points[keep], data.image_points[keep], data.view_index[keep], data.n_views)
+    renumber = np.full(data.n_views, -1)
+    renumber[views] = np.arange(len(views))
+    return Data(data.object_points[keep], data.image_points[keep], renumber[data.view_index[keep]], len(views))
 
 
 def check_planar(data: Data) -> None:
@@ -167,7 +180,7 @@ def _initialise(data: Data, image_size: tuple[int, int], n_coefficients: int) ->
         raise DataError(f"view {bad} has {counts[bad]} corners; each view needs at least {MIN_POINTS_PER_VIEW}")
     w, h = image_size
     centre = ((w - 1) / 2, (h - 1) / 2)
-    sample = _subsample(data, 40, np.random.default_rng(0))
+    sample = _subsample(data, 20, 40, np.random.default_rng(0))
     focal_only = np.zeros(4 + n_coefficients, dtype=bool)
     focal_only[:2] = True
     quick = SolveSettings(max_iterations=30, ftol=1e-4, free_params=focal_only)

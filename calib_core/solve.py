@@ -10,6 +10,7 @@ Python loop over points, and solves the damped normal equations.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -66,7 +67,12 @@ class SolveSettings:
     initial_damping: float = 1e-3
     fix_poses: bool = False  # refit the model only (poses held)
     fix_model: bool = False  # refit the poses only (hold-out evaluation)
-    free_params: np.ndarray | None = None  # (n_params,) bool: model parameters to fit (None: all)
+    free_params: np.ndarray | None = None  # (n_params,) bool: model parameters to fit (None: the model's free_mask)
+
+
+# Marquardt damping (relative to JᵀJ's diagonal) below which a damped step is a
+# Gauss-Newton step for the convergence test.
+NEGLIGIBLE_DAMPING = 1e-6
 
 
 def residuals(model, poses: np.ndarray, data: Data) -> np.ndarray:
@@ -76,41 +82,53 @@ def residuals(model, poses: np.ndarray, data: Data) -> np.ndarray:
 
 
 def _assemble(model, poses: np.ndarray, data: Data, settings: SolveSettings):
-    """Residual vector and CSR Jacobian over [model params | poses]."""
-    n_model = model.n_params
+    """Residual vector and CSR Jacobian over [free model params | poses]."""
     pc = camera.transform(poses, data.view_index, data.object_points)
     uv, d_pc, cols, vals = model.project(pc, jacobian=True)
     r = (uv - data.image_points).ravel()
     n = len(pc)
+    n_model = 0
     blocks_c, blocks_v = [], []
     if not settings.fix_model:
-        blocks_c.append(cols)
-        blocks_v.append(vals)
+        column = _model_columns(model.n_params, settings.free_params)
+        n_model = int(column.max()) + 1 if len(column) else 0
+        cols = column[cols]
+        held = cols < 0  # held parameters: zero-valued padding on column 0
+        blocks_c.append(np.where(held, 0, cols))
+        blocks_v.append(np.where(held, 0.0, vals))
     if not settings.fix_poses:
-        d_pose = np.einsum("nij,njk->nik", d_pc, camera.d_transform(pc))  # (N, 2, 6)
-        pose_cols = (n_model if not settings.fix_model else 0) + 6 * data.view_index[:, None] + np.arange(6)
+        d_pose = d_pc @ camera.d_transform(pc)  # (N, 2, 6)
+        pose_cols = n_model + 6 * data.view_index[:, None] + np.arange(6)
         blocks_c.append(np.broadcast_to(pose_cols[:, None, :], (n, 2, 6)))
         blocks_v.append(d_pose)
     c = np.concatenate(blocks_c, axis=2).reshape(2 * n, -1)
     v = np.concatenate(blocks_v, axis=2).reshape(2 * n, -1)
     width = c.shape[1]
-    n_cols = (0 if settings.fix_model else n_model) + (0 if settings.fix_poses else 6 * data.n_views)
+    n_cols = n_model + (0 if settings.fix_poses else 6 * data.n_views)
     jac = sp.csr_matrix((v.ravel(), c.ravel(), np.arange(0, 2 * n * width + 1, width)), shape=(2 * n, n_cols))
     prior = None if settings.fix_model else model.prior()
     if prior is not None:
         pr, pj = prior
-        r = np.concatenate([r, pr])
         pj = sp.csr_matrix(pj)
+        if settings.free_params is not None:
+            pj = pj[:, np.flatnonzero(settings.free_params)]
         if not settings.fix_poses:
             pj = sp.hstack([pj, sp.csr_matrix((pj.shape[0], 6 * data.n_views))]).tocsr()
+        r = np.concatenate([r, pr])
         jac = sp.vstack([jac, pj]).tocsr()
-    if settings.free_params is not None and not settings.fix_model:
-        jac = jac[:, _free_columns(settings, data.n_views)]
     return r, jac
 
 
+def _model_columns(n_params: int, free_params: np.ndarray | None) -> np.ndarray:
+    """(n_params,) int: each model parameter's Jacobian column, −1 if held."""
+    if free_params is None:
+        return np.arange(n_params)
+    free = np.asarray(free_params, dtype=bool)
+    return np.where(free, np.cumsum(free) - 1, -1)
+
+
 def _free_columns(settings: SolveSettings, n_views: int) -> np.ndarray:
-    """Columns of the full [model | poses] Jacobian that are fitted."""
+    """Columns of the full [model | poses] state that are fitted."""
     keep = np.asarray(settings.free_params, dtype=bool)
     if not settings.fix_poses:
         keep = np.concatenate([keep, np.ones(6 * n_views, dtype=bool)])
@@ -165,6 +183,8 @@ def levenberg_marquardt(
     raise ``Cancelled``.
     """
     settings = settings or SolveSettings()
+    if settings.free_params is None:
+        settings = dataclasses.replace(settings, free_params=model.free_mask())
     poses = np.asarray(poses, dtype=np.float64).copy()
     cost = _cost(model, poses, data, settings)
     if not np.isfinite(cost):
@@ -175,9 +195,14 @@ def levenberg_marquardt(
     it = 0
     r, jac = _assemble(model, poses, data, settings)
     jtj, g = (jac.T @ jac), jac.T @ r
+    check_step = False  # is the next damped step also the convergence test?
     while it < settings.max_iterations:
         it += 1
         delta = _solve_damped(jtj, g, mu)
+        if check_step and -0.5 * float(delta @ g) <= settings.ftol * cost:
+            status, message = "converged", f"a Gauss-Newton step would gain less than ftol={settings.ftol:g} of the cost"
+            break
+        check_step = False
         new_model, new_poses = _apply(model, poses, delta, settings)
         new_cost = _cost(new_model, new_poses, data, settings)
         diag = jtj.diagonal()
@@ -195,7 +220,12 @@ def levenberg_marquardt(
             jtj, g = (jac.T @ jac), jac.T @ r
             # Converged when even an undamped Gauss-Newton step would gain
             # less than ftol of the cost: a heavily damped step alone can be
-            # small (and gain little) far from the minimum.
+            # small (and gain little) far from the minimum. Once the damping
+            # is negligible the next step is that Gauss-Newton step: it is
+            # tested at the top of the loop instead of being solved twice.
+            if mu <= NEGLIGIBLE_DAMPING:
+                check_step = True
+                continue
             gn = _solve_damped(jtj, g, 1e-12)
             if -0.5 * float(gn @ g) <= settings.ftol * cost:
                 status, message = "converged", f"a Gauss-Newton step would gain less than ftol={settings.ftol:g} of the cost"

@@ -76,6 +76,26 @@ def pinhole_visible(poses: np.ndarray, data: Data) -> np.ndarray:
     return pc[:, 2] / np.linalg.norm(pc, axis=1) > np.cos(np.radians(MAX_ANGLE_DEG))
 
 
+RACE_ITERATIONS = 25
+
+
+def best_of(starts, data: Data, settings: SolveSettings):
+    """The best converged fit from several (model, poses) starts. Each runs
+    RACE_ITERATIONS first; only the lowest then runs to convergence. A start
+    headed for a worse minimum shows it early (measured on the rational model:
+    2.5x the leader's cost after 25 iterations), and crawling there to
+    ftol = 1e-12 cost up to 500 iterations."""
+    short = dataclasses.replace(settings, max_iterations=min(RACE_ITERATIONS, settings.max_iterations))
+    raced = [levenberg_marquardt(model, poses, data, short) for model, poses in starts]
+    leader = min(raced, key=lambda r: r.cost)
+    if leader.status == "max_iterations" and settings.max_iterations > RACE_ITERATIONS:
+        rest = dataclasses.replace(settings, max_iterations=settings.max_iterations - leader.iterations)
+        finished = levenberg_marquardt(leader.model, leader.poses, data, rest)
+        finished.iterations += leader.iterations
+        leader = finished
+    return leader
+
+
 def fit_opencv(data: Data, image_size, s: OpenCVSettings, progress: Progress) -> Fit:
     progress("initialise", 0.0)
     init = initialise(data, image_size)
@@ -90,24 +110,20 @@ def fit_opencv(data: Data, image_size, s: OpenCVSettings, progress: Progress) ->
     pc = camera.transform(init.poses, sub.view_index, sub.object_points)
     xn = pc[:, :2] / pc[:, 2:]
     xd = (sub.image_points - [cx, cy]) / [fx, fy]
-    model = OpenCVModel([fx, fy, cx, cy, 0.0], seed_coefficients(xn, xd, s.n_coefficients))
     progress("levenberg-marquardt", 0.2)
     settings = SolveSettings(s.max_iterations, s.ftol)
-    res = levenberg_marquardt(model, init.poses, sub, settings)
     # The linear seed can be poor at wide angles (a polynomial in r² far out);
-    # the distortion-free start is the other classic choice: keep the better.
-    alt = levenberg_marquardt(OpenCVModel([fx, fy, cx, cy, 0.0], np.zeros(s.n_coefficients)), init.poses, sub, settings)
-    if alt.cost < res.cost:
-        res = alt
+    # the distortion-free start is the other classic choice.
+    starts = [(OpenCVModel([fx, fy, cx, cy, 0.0], seed_coefficients(xn, xd, s.n_coefficients)), init.poses),
+              (OpenCVModel([fx, fy, cx, cy, 0.0], np.zeros(s.n_coefficients)), init.poses)]
     if s.n_coefficients > 5:
         # Nested models: start also from the best 5-coefficient fit, so that
         # rational is never worse than zhang on the same corners.
         five = levenberg_marquardt(OpenCVModel([fx, fy, cx, cy, 0.0], seed_coefficients(xn, xd, 5)), init.poses, sub, settings)
         k = np.zeros(s.n_coefficients)
         k[:5] = five.model.coefficients
-        nested = levenberg_marquardt(OpenCVModel(five.model.intrinsics, k), five.poses, sub, settings)
-        if nested.cost < res.cost:
-            res = nested
+        starts.append((OpenCVModel(five.model.intrinsics, k), five.poses))
+    res = best_of(starts, sub, settings)
     if not np.all(np.isfinite(res.residuals)):
         raise DataError("the OpenCV model diverged on these corners (non-finite projections); "
                         "the lens is probably too wide for it: use --method fisheye or bspline")

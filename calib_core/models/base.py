@@ -46,6 +46,12 @@ class CameraModel(ABC):
         """Extra residual rows linear in the parameters, ``(r, J)``, or None."""
         return None
 
+    def free_mask(self) -> np.ndarray | None:
+        """(n_params,) bool: the parameters a fit of this model moves (None: all).
+        Models whose parameters trade off along a flat valley hold some of
+        them (a gauge choice, recorded in their settings)."""
+        return None
+
     @abstractmethod
     def distortion_json(self) -> dict[str, Any]:
         """The ``distortion`` object of formats.md."""
@@ -58,7 +64,7 @@ class CameraModel(ABC):
             return self.pixel_of(camera.normalise(pc, self.base))
         xn, d_xn = camera.normalise(pc, self.base, jacobian=True)
         uv, d_uv, cols, vals = self.pixel_of(xn, jacobian=True)
-        return uv, np.einsum("nij,njk->nik", d_uv, d_xn), cols, vals
+        return uv, d_uv @ d_xn, cols, vals
 
     def ideal_pixel(self, xn: np.ndarray) -> np.ndarray:
         """``(xn, yn)`` into pixels with the intrinsics alone (no distortion)."""
@@ -176,4 +182,4 @@ def intrinsics_jacobian(xn: np.ndarray, a: np.ndarray) -> np.ndarray:
     dk[:, 0, 4] = xn[:, 1]
     dk[:, 1, 1] = xn[:, 1]
     dk[:, 1, 3] = 1.0
-    return np.einsum("nij,njk->nik", a, dk)
+    return a @ dk

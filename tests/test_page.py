@@ -5,7 +5,9 @@ in a subprocess: upload OpenCV's left stereo images, watch detection and the
 job, read the metrics and a heatmap (with its tooltip), download the
 calibration and validate it, open the 3D view and check the scene's nodes
 (server side: labels are drawn in the canvas). Screenshots of each step go to
-test-artifacts/page/ at 1366x768, and the results also at 1920x1080.
+test-artifacts/page/ at 1366x768, and the results also at 1920x1080. Then the
+same against a server with FREECAL_TOKEN: the page asks for it once and sends
+it with every request, link, thumbnail and the 3D view's websocket.
 """
 from __future__ import annotations
 
@@ -177,3 +179,85 @@ def test_upload_watch_review_download_and_3d(browser, service, shots, tmp_path):
     wide.close()
     page.close()
     assert not errors, errors
+
+
+TOKEN = "page-t0ken_7"
+
+
+@pytest.fixture(scope="module")
+def guarded(tmp_path_factory):
+    root = tmp_path_factory.mktemp("page-token")
+    svc = Service(root / "data", root, {**FAST, "FREECAL_VIEWER_PORT": "0", "FREECAL_TOKEN": TOKEN}).start()
+    yield svc
+    svc.stop()
+
+
+def test_browser_with_a_token_asks_once_then_sends_it_everywhere(browser, guarded, shots):
+    """FREECAL_TOKEN set: opened as /?token=, the page keeps it for the tab (and out of the address bar)
+    and every fetch, thumbnail, download and the 3D view's websocket carry it; a tab without it asks once."""
+    images = sorted(shared_data("opencv-stereo-9x6").glob("left*.jpg"))[:8]
+    base = f"http://127.0.0.1:{guarded.port}"
+    page = browser.new_page(viewport={"width": 1366, "height": 768}, accept_downloads=True)
+    refused: list[str] = []
+    page.on("response", lambda r: refused.append(r.url) if r.status == 401 else None)
+    page.goto(f"{base}/?token={TOKEN}")
+    page.wait_for_selector("#method option[value=bspline]", state="attached")
+    assert "token" not in page.url and page.evaluate("sessionStorage.getItem('freecal.token')") == TOKEN
+    assert page.locator("#token-form").count() == 0
+
+    page.set_input_files("#files", [str(p) for p in images])
+    page.select_option("#method", "bspline")
+    page.click("#settings summary")
+    for key, value in SETTINGS.items():
+        if page.eval_on_selector(f"#setting-{key}", "e => e.tagName") == "SELECT":
+            page.select_option(f"#setting-{key}", value)
+        else:
+            page.fill(f"#setting-{key}", value)
+    page.click("#submit")
+    page.wait_for_selector("#metrics-overall", timeout=180_000)
+    # <img src> and links cannot send headers: they carry ?token=
+    first = page.locator("#images img").first
+    first.scroll_into_view_if_needed()
+    page.wait_for_function("(() => { const i = document.querySelector('#images img'); "
+                           "return i.complete && i.naturalWidth > 0; })()", timeout=30_000)
+    assert f"token={TOKEN}" in first.get_attribute("src")
+    hrefs = page.eval_on_selector_all("#downloads a", "as => as.map(a => a.getAttribute('href'))")
+    assert hrefs and all(f"token={TOKEN}" in h for h in hrefs)
+    with page.expect_download() as dl:
+        page.click("#downloads a[data-file='calibration.json']")
+    assert Calibration.from_json(json.loads(Path(dl.value.path()).read_text())).method == "bspline"
+    page.wait_for_function("document.querySelector('#rectified-after') && "
+                           "document.querySelector('#rectified-after').naturalWidth > 0", timeout=60_000)
+
+    # the 3D view through /viewer: its page and websocket pass the token, and the scene arrives
+    page.click("#open-3d")
+    frame = page.wait_for_selector("iframe.viewer-frame")
+    frame.scroll_into_view_if_needed()
+    src = frame.get_attribute("src")
+    assert src.startswith("/viewer/?") and f"token={TOKEN}" in src and "websocket=" in src
+    job_id = page.text_content("#results-title").split("job ")[1].split(":")[0]
+
+    def scene():
+        clients = guarded.client.get("/api/viewer").json()["clients"]
+        return next((c for c in clients if c["job_id"] == job_id and c["nodes"]), None)
+
+    assert "/cameras/0/frustum" in wait_for(scene, 60, "the 3D view to draw the job", guarded.logs())["nodes"]
+    assert not refused, refused   # the tab never met a 401
+    page.wait_for_timeout(3000)  # let WebGL draw before the screenshot
+    page.screenshot(path=shots / "08-token-viewer.png")
+
+    # a tab without the token: one form, a wrong token is refused, the right one opens the page
+    other = browser.new_page()
+    other.goto(f"{base}/")
+    other.wait_for_selector("#token-form")
+    assert other.locator("#token-form").count() == 1
+    other.fill("#token-input", "wrong")
+    other.click("#token-form button[type=submit]")
+    other.wait_for_selector("#token-form:has-text('refused')")
+    other.screenshot(path=shots / "09-token-form.png")
+    other.fill("#token-input", TOKEN)
+    other.click("#token-form button[type=submit]")
+    other.wait_for_selector(f"#jobs button[aria-label^='job {job_id}']", timeout=30_000)
+    assert other.locator("#token-form").count() == 0
+    other.close()
+    page.close()

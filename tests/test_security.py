@@ -6,7 +6,8 @@ worker: jobs stay queued, which is what the quota and path tests need).
 - CORS is closed unless FREECAL_CORS_ORIGINS lists an origin.
 - Jobs per client: 429 with advice past FREECAL_MAX_JOBS_PER_CLIENT.
 - Downloads and thumbnails take names, never paths: nothing outside a job's or set's folder.
-- The service and the 3D view bind loopback by default; /docs needs no internet.
+- The service and the 3D view bind loopback by default, and a token keeps the 3D view there;
+  /docs needs no internet. (The /viewer proxy over real sockets: test_viewer_proxy.py.)
 """
 from __future__ import annotations
 
@@ -149,3 +150,22 @@ def test_service_and_3d_view_bind_loopback_by_default():
 
     assert build_parser().parse_args(["serve"]).host == "127.0.0.1"
     assert inspect.signature(Viewer.__init__).parameters["host"].default == "127.0.0.1"
+    assert Settings.from_env(env={}).viewer_host == "127.0.0.1"
+
+
+def test_a_token_keeps_the_3d_view_on_loopback(tmp_path):
+    """viser cannot check the token: with one set, a public viewer host refuses to start."""
+    from dataclasses import replace
+
+    from calib_core.errors import SettingsError
+
+    from backend.app.security import check_viewer_exposure
+
+    base = Settings.from_env(env={}, data_dir=tmp_path)
+    check_viewer_exposure(replace(base, token=TOKEN))                                   # loopback: fine
+    check_viewer_exposure(replace(base, viewer_host="0.0.0.0"))                         # no token: open anyway
+    check_viewer_exposure(replace(base, token=TOKEN, viewer_host="0.0.0.0", viewer=False))  # no 3D view
+    with pytest.raises(SettingsError, match="FREECAL_VIEWER_HOST=0.0.0.0 with FREECAL_TOKEN"):
+        check_viewer_exposure(replace(base, token=TOKEN, viewer_host="0.0.0.0"))
+    with pytest.raises(SettingsError, match="FREECAL_VIEWER=0"):
+        create_app(replace(base, token=TOKEN, viewer_host="192.168.1.5"))

@@ -114,7 +114,9 @@ class Service:
         self.proc = Proc(f"serve-{self.starts}", freecal("serve", "--port", str(self.port), "--data-dir",
                                                         str(self.data_dir), "--workers", str(self.workers)),
                          self.log_dir, self.env)
-        self.client = httpx.Client(base_url=f"http://127.0.0.1:{self.port}", timeout=30)
+        # a server started with FREECAL_TOKEN: the test's own client sends it
+        token = {"Authorization": f"Bearer {self.env['FREECAL_TOKEN']}"} if self.env.get("FREECAL_TOKEN") else {}
+        self.client = httpx.Client(base_url=f"http://127.0.0.1:{self.port}", timeout=30, headers=token)
         wait_for(lambda: self.client.get("/api/health").status_code == 200, 60, "the API to answer /api/health",
                  [self.proc])
         return self

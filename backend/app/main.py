@@ -20,7 +20,7 @@ from . import errors
 from .context import Context
 from .limits import BodyLimit
 from . import frontend
-from .security import ClientQuota, TokenDep, install_cors, install_docs
+from .security import ClientQuota, TokenDep, check_viewer_exposure, install_cors, install_docs
 from .routers import figures, health, images, jobs, rectified, sets, viewer
 from .settings import Settings
 
@@ -29,6 +29,7 @@ log = logging.getLogger("freecal.api")
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or Settings.from_env()
+    check_viewer_exposure(settings)  # a token with viser on a public interface: refuse, never expose
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -68,17 +69,20 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     for module in (sets, images, rectified, jobs, figures, viewer, health):  # rectified before jobs: its maps.npz beats /{file}
         app.include_router(module.router, dependencies=[TokenDep])  # FREECAL_TOKEN, when set
     install_docs(app)
+    from ..viewer import proxy
+
+    proxy.install(app)  # /viewer: the 3D view behind the same token
     frontend.mount(app)  # last: the page at / never shadows /api or /docs
     return app
 
 
 def start_viewer(ctx: Context):
-    """The 3D view (viser) on loopback, or None if it cannot start: the API serves anyway."""
+    """The 3D view (viser) on FREECAL_VIEWER_HOST (loopback), or None if it cannot start: the API serves anyway."""
     try:
         from ..viewer.server import Viewer
 
-        view = Viewer(ctx, port=ctx.settings.viewer_port)
-        log.info("3D view on http://127.0.0.1:%d", view.port)
+        view = Viewer(ctx, host=ctx.settings.viewer_host, port=ctx.settings.viewer_port)
+        log.info("3D view on http://%s (browsers use /viewer/ on the API's port)", view.address)
         return view
     except Exception:  # an optional part: log why, keep serving
         log.exception("the 3D view could not start")

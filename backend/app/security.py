@@ -1,10 +1,13 @@
 """What guards the API when it faces a network: the optional token, CORS, the
 per-client job quota and the local /docs page.
 
-- ``require_token``: a FastAPI dependency on every /api router. With
-  ``FREECAL_TOKEN`` set, a request needs ``Authorization: Bearer <token>`` or
-  ``?token=<token>`` (for <img src> and download links), else 401. The page
+- ``require_token``: a FastAPI dependency on every /api router and on the 3D
+  view's proxy (/viewer). With ``FREECAL_TOKEN`` set, a request needs
+  ``Authorization: Bearer <token>`` or ``?token=<token>`` (for <img src>,
+  download links and websockets, which cannot send headers), else 401. The page
   (frontend/) and /docs stay public: they hold no data and must load to ask.
+- ``check_viewer_exposure``: viser cannot check a token itself, so with a token
+  set its own port must stay on loopback (reached only through /viewer).
 - CORS is closed unless ``FREECAL_CORS_ORIGINS`` lists origins.
 - ``ClientQuota``: at most ``FREECAL_MAX_JOBS_PER_CLIENT`` queued or running
   jobs per client IP (429 with advice beyond).
@@ -20,23 +23,46 @@ from typing import Annotated
 
 from fastapi import Depends, FastAPI, Request
 from fastapi.responses import HTMLResponse
+from starlette.requests import HTTPConnection
+
+from calib_core.errors import SettingsError
 
 from .errors import ApiError
 from .repository import jobs as job_rows
 
 
-def require_token(request: Request) -> None:
-    expected = request.app.state.settings.token
+TOKEN_NEEDED = ("this server needs a token: send the header 'Authorization: Bearer <token>' "
+                "(or ?token=<token> in a link); ask its administrator for FREECAL_TOKEN")
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
+
+
+def token_ok(conn: HTTPConnection) -> bool:
+    """True without FREECAL_TOKEN, or when the request (HTTP or websocket) carries it."""
+    expected = conn.app.state.settings.token
     if not expected:
-        return
-    header = request.headers.get("authorization", "")
-    given = header[7:].strip() if header[:7].lower() == "bearer " else request.query_params.get("token", "")
-    if not hmac.compare_digest(given.encode(), expected.encode()):
-        raise ApiError(401, "this server needs a token: send the header 'Authorization: Bearer <token>' "
-                            "(or ?token=<token> in a link); ask its administrator for FREECAL_TOKEN")
+        return True
+    header = conn.headers.get("authorization", "")
+    given = header[7:].strip() if header[:7].lower() == "bearer " else conn.query_params.get("token", "")
+    return hmac.compare_digest(given.encode(), expected.encode())
+
+
+def require_token(request: Request) -> None:
+    if not token_ok(request):
+        raise ApiError(401, TOKEN_NEEDED)
 
 
 TokenDep = Depends(require_token)
+
+
+def check_viewer_exposure(settings) -> None:
+    """Refuse to serve (SettingsError) when a token is set but viser would listen beyond loopback:
+    viser has no hook to check a token on its own port, so that port would show every job to anyone."""
+    if settings.token and settings.viewer and settings.viewer_host not in LOOPBACK:
+        raise SettingsError(
+            f"FREECAL_VIEWER_HOST={settings.viewer_host} with FREECAL_TOKEN set: the 3D view (viser) cannot check "
+            "the token on its own port, so it would show every calibration to anyone who reaches it. Leave "
+            "FREECAL_VIEWER_HOST at 127.0.0.1 (the page reaches the 3D view through /viewer on the API's port, "
+            "which checks the token), or turn the view off with FREECAL_VIEWER=0")
 
 
 def install_cors(app: FastAPI, origins: str) -> None:

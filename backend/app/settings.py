@@ -39,10 +39,13 @@ class Settings:
     # several workers (or a busy machine) lose up to 4x to oversubscription.
     # 0 leaves the libraries' default.
     blas_threads: int = 1
-    # The 3D view (viser) runs inside the API process on its own loopback port;
-    # viser takes the next free port if this one is taken (0: any free port).
+    # The 3D view (viser) runs inside the API process on its own port; viser takes the
+    # next free port if this one is taken (0: any free port). Browsers reach it through
+    # the API's /viewer proxy (which checks the token), so it needs no other interface;
+    # with a token set, a non-loopback viewer_host is refused (viser cannot check tokens).
     viewer: bool = True
     viewer_port: int = 8080
+    viewer_host: str = "127.0.0.1"
     # Hardening (README "Security" and "Limits"):
     # token: when set, every /api request needs "Authorization: Bearer <token>" or ?token=<token>.
     token: str = ""
@@ -50,7 +53,8 @@ class Settings:
     cors_origins: str = ""
     # Jobs (detections and calibrations) one client IP may have queued or running at once (429 beyond).
     max_jobs_per_client: int = 20
-    # A job running longer than this (seconds) is stopped and failed with the reason (0 = no limit).
+    # A job running longer than this (seconds) is killed and failed with the reason (0 = no limit).
+    # Jobs run in a child process of the worker, so the limit holds even for a solver stuck in C.
     job_timeout: float = 1800.0
     # Workers run at this niceness (0-19): a calibration yields the CPU to the API's requests,
     # so status reads stay fast while jobs run on the same cores (0: same priority).

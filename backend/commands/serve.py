@@ -34,6 +34,9 @@ def run(args) -> int:
     from ..app.context import Context
 
     Context.check_writable(settings.data_dir)  # a clear line now, not a traceback from every process
+    from ..app.security import check_viewer_exposure
+
+    check_viewer_exposure(settings)  # before any worker starts (create_app checks it again)
     env = {**os.environ, **settings.to_env()}
     children = [subprocess.Popen([sys.executable, "-m", "backend.cli", "worker", "--parent-pid", str(os.getpid())],
                                  env=env) for _ in range(max(0, args.workers))]

@@ -38,12 +38,17 @@ class Session:
 
 
 class Viewer:
-    """``Viewer(ctx)`` starts viser on loopback (``port`` 0: any free one); ``stop()`` ends it."""
+    """``Viewer(ctx)`` starts viser on loopback (``port`` 0: any free one); ``stop()`` ends it.
+
+    Browsers reach it through the API's /viewer proxy (``proxy.py``), which checks the token:
+    viser itself has no hook to refuse a connection, so its own port must not face a network.
+    """
 
     def __init__(self, ctx: Context, host: str = "127.0.0.1", port: int = 0):
         import viser
 
         self.ctx = ctx
+        self.host = host
         self.focus: str | None = None
         self.sessions: dict[int, Session] = {}
         self.server = viser.ViserServer(host=host, port=port, label="freecal 3D view", verbose=False)
@@ -58,6 +63,12 @@ class Viewer:
     @property
     def port(self) -> int:
         return self.server.get_port()
+
+    @property
+    def address(self) -> str:
+        """Where the proxy reaches viser: its host, or loopback when it listens on every interface."""
+        host = {"0.0.0.0": "127.0.0.1", "": "127.0.0.1", "::": "::1"}.get(self.host, self.host)
+        return f"[{host}]:{self.port}" if ":" in host else f"{host}:{self.port}"
 
     def stop(self) -> None:
         self.server.stop()

@@ -1,5 +1,5 @@
 // A done job's results: downloads, metrics tables, the 2-D figures and the 3D view.
-import { api } from "./api.js";
+import { api, apiUrl } from "./api.js";
 import { el } from "./format.js";
 import { coverageFigure } from "./plots/coverage.js";
 import { fieldMapFigure, fieldVectorsFigure } from "./plots/field.js";
@@ -61,9 +61,9 @@ function renderDownloads(downloads, job) {
   const box = document.getElementById("downloads");
   const order = Object.keys(LABELS).filter((n) => n in downloads).concat(Object.keys(downloads).filter((n) => !(n in LABELS)));
   const maps = "calibration.json" in downloads
-    ? el("a", { href: `/api/jobs/${job.id}/maps.npz`, download: "", "data-file": "maps.npz" }, "Undistortion maps (NPZ)") : "";
+    ? el("a", { href: api.mapsUrl(job.id), download: "", "data-file": "maps.npz" }, "Undistortion maps (NPZ)") : "";
   box.replaceChildren(el("strong", {}, "Download:"), ...order.map((n) =>
-    el("a", { href: downloads[n], download: "", "data-file": n }, LABELS[n] || n)), maps);
+    el("a", { href: apiUrl(downloads[n]), download: "", "data-file": n }, LABELS[n] || n)), maps);
 }
 
 export function hideResults() { document.getElementById("results").hidden = true; }

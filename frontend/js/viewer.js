@@ -1,5 +1,5 @@
-// The 3D view: viser on its own port, embedded in an iframe that opens on this job.
-import { api } from "./api.js";
+// The 3D view: viser behind the API's /viewer proxy, embedded in an iframe that opens on this job.
+import { api, viewerUrl } from "./api.js";
 import { showError } from "./errors.js";
 import { el } from "./format.js";
 
@@ -12,7 +12,7 @@ export async function renderViewer(job) {
     return;
   }
   const open = el("button", { type: "button", id: "open-3d" }, "Show in 3D");
-  const link = el("a", { href: info.url, target: "_blank", rel: "noopener" }, "open in a new tab");
+  const link = el("a", { href: viewerUrl(info.url), target: "_blank", rel: "noopener" }, "open in a new tab");
   box.append(el("h3", {}, "3D view"),
     el("p", { class: "muted" }, "Camera, every board pose (corners coloured by residual), the knot grid on the ideal " +
       "image plane, residual vectors and the Δx, Δy surfaces. Its panel switches job, method and surfaces. ", link),
@@ -20,7 +20,7 @@ export async function renderViewer(job) {
   open.addEventListener("click", async () => {
     // the view opens on the job asked for last (viser cannot read it from the URL)
     try { await api.openViewer(job.id); } catch (e) { showError(e); return; }
-    const frame = el("iframe", { class: "viewer-frame", src: `${info.url}?job=${job.id}`, title: `3D view of job ${job.id}` });
+    const frame = el("iframe", { class: "viewer-frame", src: viewerUrl(info.url, { job: job.id }), title: `3D view of job ${job.id}` });
     open.replaceWith(frame);
   });
 }

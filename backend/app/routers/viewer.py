@@ -1,4 +1,4 @@
-"""/api/viewer: where the 3D view (viser) listens, and which job a newly opened view shows."""
+"""/api/viewer: where the page finds the 3D view (the /viewer proxy), and which job a newly opened view shows."""
 from __future__ import annotations
 
 from typing import Any
@@ -16,7 +16,8 @@ router = APIRouter(prefix="/api/viewer", tags=["viewer"])
 
 class ViewerPublic(BaseModel):
     enabled: bool
-    url: str | None = Field(None, description="the 3D view's page (its own port, same host)")
+    url: str | None = Field(None, description="the 3D view's page, on this server (/viewer/: needs the token "
+                                              "like /api; its websocket is /viewer?token=...)")
     focus: str | None = Field(None, description="the job a newly opened view shows first")
     clients: list[dict[str, Any]] = Field(default_factory=list,
                                           description="open views: job shown and scene nodes (for tests)")
@@ -30,10 +31,8 @@ def _public(request: Request) -> ViewerPublic:
     viewer = getattr(request.app.state, "viewer", None)
     if viewer is None:
         return ViewerPublic(enabled=False)
-    host = request.url.hostname or "127.0.0.1"
-    host = f"[{host}]" if ":" in host else host
-    return ViewerPublic(enabled=True, url=f"http://{host}:{viewer.port}/", focus=viewer.focus,
-                        clients=viewer.describe())
+    # the proxy on this port, never viser's own: that one is loopback only and checks no token
+    return ViewerPublic(enabled=True, url="/viewer/", focus=viewer.focus, clients=viewer.describe())
 
 
 @router.get("", response_model=ViewerPublic)

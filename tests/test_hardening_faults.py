@@ -1,5 +1,6 @@
 """Faults: a full disk, an unwritable data directory, Redis going away and coming
-back, the server killed outright, a job that runs past its time limit.
+back, the server killed outright, a job that runs past its time limit (one stuck
+in C, never calling its progress callback: test_job_timeout.py).
 
 What exists elsewhere and is not repeated here: a worker SIGKILLed mid-job is
 retried and done by the next worker (test_service.py), the server killed mid-job
@@ -105,12 +106,13 @@ def test_database_full_rolls_back_the_set(app, monkeypatch):
 
 
 def test_job_whose_results_cannot_be_written_fails_with_the_reason(app, monkeypatch):
-    from backend.queue.execute import execute
+    from backend.queue.execute import run_claimed
 
     r = app.post("/api/jobs", json={"observations": OBS, "settings": QUICK})
     job_id = r.json()["id"]
     fail_writes(monkeypatch, errno.ENOSPC)
-    execute(app.app.state.ctx, job_id)  # what the worker runs, here in-process
+    ctx = app.app.state.ctx
+    run_claimed(ctx, job_id, job_rows.claim(ctx.db, job_id, "test"))  # what the job process runs, here in-process
     job = app.get(f"/api/jobs/{job_id}").json()
     assert job["state"] == "failed" and "disk is full" in job["error"] and "could not be written" in job["error"]
     assert not job["downloads"]
@@ -204,7 +206,7 @@ def test_job_past_its_time_limit_is_failed_with_the_reason(timed):
     # every method, cross-validated: far longer than the 4 s limit
     job = wait_job(c, create_job(c, set_id, "compare", {"splits": 5}), 60, timed.logs())
     assert job["state"] == "failed", job
-    assert "time limit of 4 s" in job["error"] and "FREECAL_JOB_TIMEOUT" in job["error"]
+    assert "exceeded the 4 s time limit" in job["error"] and "FREECAL_JOB_TIMEOUT" in job["error"]
     assert not job["downloads"]
     # the worker is free again: the next job runs
     assert wait_job(c, create_job(c, set_id, settings=QUICK), 60, timed.logs())["state"] == "done"

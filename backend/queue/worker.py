@@ -11,6 +11,7 @@ import time
 from ..app.context import Context
 from ..app.repository import workers
 from ..app.settings import Settings
+from . import job_process
 from .lease import WORKER_ID
 from .recovery import Periodic, recover_stale
 from .tasks import build_queue
@@ -36,6 +37,7 @@ def run_worker(settings: Settings, threads: int | None = None, parent_pid: int |
         threadpool_limits(limits=settings.blas_threads)  # process-wide, for every job this worker runs
     ctx = Context.open(settings)
     queue = build_queue(ctx)
+    job_process.prepare()  # after nice and the environment above: job processes inherit both
     consumer = queue.huey.create_consumer(
         workers=threads or settings.worker_threads, worker_type="thread", periodic=False,
         initial_delay=0.05, max_delay=settings.poll_seconds, backoff=1.5)
@@ -57,6 +59,7 @@ def run_worker(settings: Settings, threads: int | None = None, parent_pid: int |
     try:
         consumer.run()
     finally:
+        job_process.stop_all()  # SIGTERM (stop now) leaves jobs running: end them, recovery retries them
         ticker.stop()
         workers.remove(ctx.db, WORKER_ID)
     return 0

@@ -62,7 +62,7 @@ def gcv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge:
             mu, v = scipy.linalg.eigh(r, s)
         mu = np.maximum(mu, 0.0)
         rhs = v.T @ (b.T @ (w * response[:, c]))
-        lever = np.einsum("ij,jk,ki->i", v.T, btwb, v)  # vᵢᵀ BᵀWB vᵢ
+        lever = np.sum(v * (btwb @ v), axis=0)  # vᵢᵀ BᵀWB vᵢ (a 3-operand einsum is 10x slower)
         bv = b @ v  # (N, n)
         for k, lam in enumerate(lambdas):
             shrink = 1.0 / (1.0 + lam * mu)

@@ -93,9 +93,9 @@ def _assemble(model, poses: np.ndarray, data: Data, settings: SolveSettings):
         column = _model_columns(model.n_params, settings.free_params)
         n_model = int(column.max()) + 1 if len(column) else 0
         cols = column[cols]
-        held = cols < 0  # held parameters: zero-valued padding on column 0
-        blocks_c.append(np.where(held, 0, cols))
-        blocks_v.append(np.where(held, 0.0, vals))
+        cols, vals = _drop_held(cols, vals)
+        blocks_c.append(cols)
+        blocks_v.append(vals)
     if not settings.fix_poses:
         d_pose = d_pc @ camera.d_transform(pc)  # (N, 2, 6)
         pose_cols = n_model + 6 * data.view_index[:, None] + np.arange(6)
@@ -117,6 +117,21 @@ def _assemble(model, poses: np.ndarray, data: Data, settings: SolveSettings):
         r = np.concatenate([r, pr])
         jac = sp.vstack([jac, pj]).tocsr()
     return r, jac
+
+
+def _drop_held(cols: np.ndarray, vals: np.ndarray):
+    """Remove the entries of held parameters (column −1) from (N, 2, w)
+    Jacobian rows: every entry costs in JᵀJ, and a hybrid model holds 16 of
+    its 36 (its core's coefficients). When rows hold different numbers, the
+    held entries become zero-valued padding on column 0 instead."""
+    held = cols < 0
+    if not held.any():
+        return cols, vals
+    kept = (~held).sum(axis=2)
+    if np.all(kept == kept.flat[0]):
+        n = len(cols)
+        return cols[~held].reshape(n, 2, -1), vals[~held].reshape(n, 2, -1)
+    return np.where(held, 0, cols), np.where(held, 0.0, vals)
 
 
 def _model_columns(n_params: int, free_params: np.ndarray | None) -> np.ndarray:

@@ -49,11 +49,14 @@ BSPLINE_FLAGS = [
     ("--max-intervals", "max_intervals", int, "cap of knot intervals per direction (kde)"),
     ("--min-support", "min_support", int, "minimum corners per knot interval (default max(10, N/50))"),
     ("--bandwidth", "bandwidth", str, "KDE bandwidth rule: scott or silverman"),
-    ("--bandwidth-factor", "bandwidth_factor", float, "KDE bandwidth multiplier (Table 2: 1.0)"),
+    ("--bandwidth-factor", "bandwidth_factor", _number_or_auto,
+     "KDE bandwidth multiplier (Table 2: 1.0), or auto (GCV, with the intervals)"),
     ("--window-ratio", "window_ratio", float, "local-std window ratio rho"),
     ("--weighting", "weighting", str, "sample weights: local_std, uniform, magnitude, gradient"),
     ("--lambda-reg", "lambda_reg", float, "L2 weight on control values"),
     ("--lambda-smooth", "lambda_smooth", _number_or_auto, "bending-energy weight of the field, or auto (GCV)"),
+    ("--time-budget", "time_budget", float, "seconds the GCV search over knot grids and bandwidths may take "
+                                            "(default: no limit)"),
     ("--base", "base", str, "base projection: pinhole, equidistant, stereographic"),
     ("--max-iterations", "max_iterations", int, "Levenberg-Marquardt iteration cap"),
     ("--ftol", "ftol", float, "relative cost decrease that ends the solve"),
@@ -143,11 +146,10 @@ def print_summary(cal) -> None:
               f"zero columns {g['zero_columns']}")
     curve = d.get("smoothing_curve")
     if curve:
-        print("knot grid and smoothing chosen by generalised cross-validation (lower is better):")
-        chosen = cal.settings.get("intervals_used")
-        table(["grid", "lambda_smooth", "GCV score [px^2]", "effective parameters", "chosen"],
-              [("x".join(map(str, c["intervals"])), c["lambda_smooth"], c["gcv"], f"{c['dof']:.0f}",
-                "*" if c["intervals"] == chosen else "") for c in curve])
+        print("knot grid, bandwidth and smoothing chosen by generalised cross-validation (lower is better):")
+        chosen = [cal.settings.get("intervals_used"), cal.settings.get("bandwidth_factor_used")]
+        table(["grid", "bandwidth factor", "lambda_smooth", "GCV score [px^2]", "effective parameters", "chosen"],
+              [_curve_row(c, chosen) for c in curve])
     sv = d.get("solver", {})
     print(f"solver: {sv.get('status')} after {sv.get('iterations')} iterations ({sv.get('message')}), "
           f"{sv.get('seconds', 0):.2f} s")
@@ -158,3 +160,13 @@ def print_summary(cal) -> None:
     print(f"\ncentre rmse {m['rmse_center']:.4f} px, edge rmse {m['rmse_edge']:.4f} px")
     for dv in cal.dropped_views:
         print(f"dropped {dv['name']}: {dv['reason']}")
+
+
+def _curve_row(c: dict, chosen: list) -> tuple:
+    grid = "x".join(map(str, c["intervals"]))
+    factor = c.get("bandwidth_factor")  # absent from calibrations made before it was chosen
+    shown = "—" if factor is None else f"{factor:g}"
+    if "skipped" in c:
+        return grid, shown, "—", "—", "—", f"skipped ({c['skipped']})"
+    return (grid, shown, c["lambda_smooth"], c["gcv"], f"{c['dof']:.0f}",
+            "*" if [c["intervals"], factor] == chosen else "")

@@ -20,6 +20,7 @@ joint fit is run again on that grid.
 from __future__ import annotations
 
 import dataclasses
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,6 +43,9 @@ PINHOLE_MAX_ANGLE_DEG = camera.PINHOLE_MAX_ANGLE_DEG
 DOMAIN_MARGIN = 0.02  # of the domain's span, on every side
 AUTO = "auto"
 AUTO_INTERVALS = (6, 8, 10, 12, 15)
+# Scott × factor candidates (method.md §"Adaptive knots"), the paper's 1.0 first:
+# with a time budget the search covers every grid at 1.0 before the others.
+AUTO_BANDWIDTH_FACTORS = (1.0, 1.2, 0.8, 1.5)
 CORES = ("auto", "none", "rational", "fisheye")
 # Knot counts within this fraction of the best GCV score count as equally good:
 # the coarsest of them is taken (see _choose_smoothing).
@@ -55,13 +59,14 @@ class BSplineSettings:
     interior_knots: tuple | None = None  # "explicit": ([u knots], [v knots]) in the field's pixels
     intervals: int | tuple[int, int] | str = AUTO  # per direction; "auto": chosen by GCV
     bandwidth: str = "scott"
-    bandwidth_factor: float = 1.0
+    bandwidth_factor: float | str = 1.0  # "auto": chosen by GCV from AUTO_BANDWIDTH_FACTORS
     max_intervals: int = 15
     min_support: int | None = None
     window_ratio: float = 0.05
     weighting: str = "local_std"  # Table 12: local_std | uniform | magnitude | gradient
     lambda_reg: float = 1e-6
     lambda_smooth: float | str = AUTO  # "auto": chosen by GCV
+    time_budget: float | None = None  # seconds for the search over knot grids and bandwidths; None: no limit
     base: str = "pinhole"
     max_iterations: int = 500
     ftol: float = 1e-6
@@ -73,6 +78,11 @@ class BSplineSettings:
             raise SettingsError(f"lambda_reg must be a number ≥ 0, got {self.lambda_reg!r}")
         if self.lambda_smooth != AUTO and not (isinstance(self.lambda_smooth, (int, float)) and self.lambda_smooth >= 0):
             raise SettingsError(f"lambda_smooth must be 'auto' or a number ≥ 0, got {self.lambda_smooth!r}")
+        if self.bandwidth_factor != AUTO and not self._positive(self.bandwidth_factor):
+            raise SettingsError(f"bandwidth_factor must be 'auto' or a number > 0, got {self.bandwidth_factor!r}")
+        if self.time_budget is not None and not self._positive(self.time_budget):
+            raise SettingsError(f"time_budget must be a number of seconds > 0 (or None: no limit), "
+                                f"got {self.time_budget!r}")
         if self.base not in camera.BASES:
             raise SettingsError(f"base: expected one of {camera.BASES}, got {self.base!r}")
         if self.core != "none" and self.base != "pinhole":
@@ -92,9 +102,17 @@ class BSplineSettings:
                 raise SettingsError(f"intervals must be 'auto', N or (N, M), got {self.intervals!r}") from None
         self.knot_settings((10, 10) if self.intervals == AUTO else self.intervals).validate()
 
-    def knot_settings(self, intervals: tuple[int, int]) -> knots.KnotSettings:
+    @staticmethod
+    def _positive(x) -> bool:
+        return isinstance(x, (int, float)) and not isinstance(x, bool) and x > 0
+
+    def knot_settings(self, intervals: tuple[int, int], bandwidth_factor: float | None = None) -> knots.KnotSettings:
+        """The knot placement's settings; ``bandwidth_factor`` overrides the
+        setting (with "auto" and no override: the first candidate)."""
+        if bandwidth_factor is None:
+            bandwidth_factor = AUTO_BANDWIDTH_FACTORS[0] if self.bandwidth_factor == AUTO else self.bandwidth_factor
         return knots.KnotSettings(
-            strategy=self.knots, bandwidth=self.bandwidth, bandwidth_factor=self.bandwidth_factor,
+            strategy=self.knots, bandwidth=self.bandwidth, bandwidth_factor=bandwidth_factor,
             window_ratio=self.window_ratio, max_intervals=self.max_intervals, min_support=self.min_support,
             intervals=intervals, interior=self.interior_knots,
         )
@@ -268,29 +286,45 @@ def _fitted(problem: FieldProblem, breaks, lambda_reg, lambda_smooth, start, sam
 
 
 def _choose_smoothing(problem: FieldProblem, samples, response, weights, s: BSplineSettings):
-    """(intervals, λ_smooth, curve) minimising GCV over what is left "auto"."""
+    """(intervals, bandwidth factor, λ_smooth, curve) minimising GCV over what
+    is left "auto", within ``s.time_budget`` seconds. Candidates run cheapest
+    (fewest intervals) and most likely (the paper's bandwidth) first; the first
+    always runs, and those the budget leaves out enter the curve as skipped."""
     counts = [(m, m) for m in AUTO_INTERVALS if m <= s.max_intervals] if s.intervals == AUTO else [s.intervals]
+    factors = AUTO_BANDWIDTH_FACTORS if s.bandwidth_factor == AUTO else [s.bandwidth_factor]
     lambdas = LAMBDA_GRID if s.lambda_smooth == AUTO else np.array([float(s.lambda_smooth)])
-    curve, options = [], []
-    for m in counts:
-        breaks = knots.breaks_for(samples, weights, problem.domain, s.knot_settings(m), problem.footprint)
-        field = BSplineField.zeros(clamped_knots(breaks[0]), clamped_knots(breaks[1]))
-        b = field.design(samples).matrix(field.n_controls)
-        # What is smoothed is the departure from the prior field: cross-validate that.
-        p0 = problem.prior_control(field).reshape(-1, 2)
-        g = gcv_curve(b, weights / weights.mean(axis=0), field.bending(),
-                      gauge_rows(field, problem.gauge_point) * GAUGE_WEIGHT, response - b @ p0, s.lambda_reg, lambdas)
-        k = int(np.argmin(g.score))
-        curve.append({"intervals": [len(breaks[0]) - 1, len(breaks[1]) - 1], "lambda_smooth": float(g.lambdas[k]),
-                      "gcv": float(g.score[k]), "dof": float(g.dof[k])})
-        options.append((g.score[k], m, float(g.lambdas[k])))
-    # The coarsest grid whose score is within GCV_TOLERANCE of the best: GCV
-    # measures prediction where corners are, and favours fine grids whose
-    # extra freedom costs most where they are not (edges, corners): measured
-    # on the synthetic lenses, this keeps hold-out errors 10-30 % lower.
-    best_score = min(o[0] for o in options)
-    score, m, lam = next(o for o in options if o[0] <= best_score * (1 + GCV_TOLERANCE))
-    return m, lam, curve
+    started = time.perf_counter()
+    curve, options, scored = [], [], {}
+    for factor in factors:
+        for m in counts:
+            if options and s.time_budget is not None and time.perf_counter() - started > s.time_budget:
+                curve.append({"intervals": list(m), "bandwidth_factor": factor, "skipped": "time budget"})
+                continue
+            breaks = knots.breaks_for(samples, weights, problem.domain, s.knot_settings(m, factor), problem.footprint)
+            key = (breaks[0].tobytes(), breaks[1].tobytes())
+            if key not in scored:  # factors that move no knot (e.g. uniform knots) cost nothing more
+                field = BSplineField.zeros(clamped_knots(breaks[0]), clamped_knots(breaks[1]))
+                b = field.design(samples).matrix(field.n_controls)
+                # What is smoothed is the departure from the prior field: cross-validate that.
+                p0 = problem.prior_control(field).reshape(-1, 2)
+                g = gcv_curve(b, weights / weights.mean(axis=0), field.bending(),
+                              gauge_rows(field, problem.gauge_point) * GAUGE_WEIGHT, response - b @ p0,
+                              s.lambda_reg, lambdas)
+                k = int(np.argmin(g.score))
+                scored[key] = (float(g.score[k]), float(g.lambdas[k]), float(g.dof[k]))
+            score, lam, dof = scored[key]
+            intervals = [len(breaks[0]) - 1, len(breaks[1]) - 1]
+            curve.append({"intervals": intervals, "bandwidth_factor": factor, "lambda_smooth": lam, "gcv": score,
+                          "dof": dof})
+            options.append((sum(intervals), score, m, factor, lam))
+    # The coarsest grid whose score is within GCV_TOLERANCE of the best (the
+    # lowest score among equally coarse ones): GCV measures prediction where
+    # corners are, and favours fine grids whose extra freedom costs most where
+    # they are not (edges, corners): measured on the synthetic lenses, this
+    # keeps hold-out errors 10-30 % lower.
+    best_score = min(o[1] for o in options)
+    _, _, m, factor, lam = min(o for o in options if o[1] <= best_score * (1 + GCV_TOLERANCE))
+    return m, factor, lam, curve
 
 
 def _free(model) -> np.ndarray | None:
@@ -353,9 +387,10 @@ def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: 
     progress("knots", 0.1)
     samples, response = problem.samples(start, poses, sub)
     weights = weights_of(samples, response)
-    auto = s.intervals == AUTO or s.lambda_smooth == AUTO
+    auto = AUTO in (s.intervals, s.bandwidth_factor, s.lambda_smooth)
     m = (10, 10) if s.intervals == AUTO else s.intervals
     lam = 1.0 if s.lambda_smooth == AUTO else float(s.lambda_smooth)
+    factor = s.knot_settings(m).bandwidth_factor
     breaks = knots.breaks_for(samples, weights, problem.domain, s.knot_settings(m), problem.footprint)
     progress("control points", 0.15)
     model = _fitted(problem, breaks, s.lambda_reg, lam, start, samples, response, weights)
@@ -369,8 +404,8 @@ def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: 
         progress("knots", 0.45)
         samples, response = problem.samples(first.model, first.poses, sub)
         weights = weights_of(samples, response)
-        m, lam, curve = _choose_smoothing(problem, samples, response, weights, s)
-        breaks = knots.breaks_for(samples, weights, problem.domain, s.knot_settings(m), problem.footprint)
+        m, factor, lam, curve = _choose_smoothing(problem, samples, response, weights, s)
+        breaks = knots.breaks_for(samples, weights, problem.domain, s.knot_settings(m, factor), problem.footprint)
         progress("control points", 0.5)
         model = _fitted(problem, breaks, s.lambda_reg, lam, first.model, samples, response, weights)
         poses = first.poses
@@ -401,6 +436,7 @@ def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: 
     settings = dataclasses.asdict(s)
     settings.update(res.model.settings_json())
     settings["intervals_used"] = [len(breaks[0]) - 1, len(breaks[1]) - 1]
+    settings["bandwidth_factor_used"] = factor
     settings["knot_breaks_u"] = breaks[0].tolist()
     settings["knot_breaks_v"] = breaks[1].tolist()
     settings["core_used"] = "none" if core == "none" else res.model.core.kind

@@ -40,19 +40,22 @@ export function viewsTable(views, title) {
   return el("div", { class: "table-wrap scroll-y" }, table);
 }
 
-/** The B-spline's knot-grid choice: GCV score per grid (lower predicts corners better). */
+/** The B-spline's knot-grid and bandwidth choice: GCV score per candidate (lower predicts corners better). */
 export function smoothingTable(calibration) {
   const curve = (calibration.diagnostics || {}).smoothing_curve || [];
   if (!curve.length) return "";
-  const chosen = JSON.stringify((calibration.settings || {}).intervals_used);
+  const settings = calibration.settings || {};
+  // A candidate is the grid and the Scott factor it was placed with (older files have no factor: undefined on both sides).
+  const isChosen = (c) => JSON.stringify(c.intervals) === JSON.stringify(settings.intervals_used)
+    && c.bandwidth_factor === settings.bandwidth_factor_used && !c.skipped;
   const table = el("table", { id: "metrics-smoothing" },
-    el("caption", {}, "Knot grid chosen from the data (generalised cross-validation)"),
-    el("thead", {}, el("tr", {}, ["knot grid", "smoothing λ", "GCV score [px²]", "effective parameters", ""]
+    el("caption", {}, "Knot grid and bandwidth chosen from the data (generalised cross-validation)"),
+    el("thead", {}, el("tr", {}, ["knot grid", "bandwidth factor", "smoothing λ", "GCV score [px²]", "effective parameters", ""]
       .map((h) => el("th", { scope: "col" }, h)))),
-    el("tbody", {}, curve.map((c) => el("tr", { class: JSON.stringify(c.intervals) === chosen ? "best" : "" },
-      el("th", { scope: "row" }, c.intervals.join(" × ")), el("td", {}, num(c.lambda_smooth, 3)),
-      el("td", {}, num(c.gcv, 4)), el("td", {}, num(c.dof, 0)),
-      el("td", {}, JSON.stringify(c.intervals) === chosen ? "chosen" : "")))));
+    el("tbody", {}, curve.map((c) => el("tr", { class: isChosen(c) ? "best" : "" },
+      el("th", { scope: "row" }, c.intervals.join(" × ")), el("td", {}, num(c.bandwidth_factor, 1)),
+      el("td", {}, num(c.lambda_smooth, 3)), el("td", {}, num(c.gcv, 4)), el("td", {}, num(c.dof, 0)),
+      el("td", {}, isChosen(c) ? "chosen" : c.skipped ? `skipped (${c.skipped})` : "")))));
   return el("div", { class: "table-wrap" }, table);
 }
 

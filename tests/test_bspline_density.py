@@ -1,0 +1,67 @@
+"""Knot density from the data: the GCV search over knot grids and KDE
+bandwidth factors, its time budget, and how it is reported."""
+import json
+
+import pytest
+
+from backend.cli import main
+from calib_core import calibrate
+from calib_core.errors import SettingsError
+from calib_core.methods.bspline import AUTO_BANDWIDTH_FACTORS
+
+from .conftest import synthetic
+
+
+def auto_bandwidth(**settings):
+    return calibrate(synthetic("asymmetric").train, "bspline", core="none", bandwidth_factor="auto", **settings)
+
+
+@pytest.fixture(scope="module")
+def searched():
+    return auto_bandwidth()
+
+
+def test_auto_bandwidth_picks_a_factor_and_records_the_curve(searched):
+    chosen = searched.settings["bandwidth_factor_used"]
+    assert chosen in AUTO_BANDWIDTH_FACTORS
+    curve = searched.diagnostics["smoothing_curve"]
+    assert {c["bandwidth_factor"] for c in curve} == set(AUTO_BANDWIDTH_FACTORS)
+    assert all("gcv" in c and "skipped" not in c for c in curve)
+    assert [searched.settings["intervals_used"], chosen] in [[c["intervals"], c["bandwidth_factor"]] for c in curve]
+
+
+def test_a_budget_that_is_not_reached_changes_nothing(searched):
+    again = auto_bandwidth(time_budget=1e3)
+    assert again.diagnostics["smoothing_curve"] == searched.diagnostics["smoothing_curve"]
+    assert again.settings["bandwidth_factor_used"] == searched.settings["bandwidth_factor_used"]
+
+
+def test_the_time_budget_stops_the_search_and_says_so():
+    cal = auto_bandwidth(time_budget=1e-9)
+    first, *rest = cal.diagnostics["smoothing_curve"]
+    assert "gcv" in first  # the first candidate always runs
+    assert rest and all(c["skipped"] == "time budget" and "gcv" not in c for c in rest)
+    assert [cal.settings["intervals_used"], cal.settings["bandwidth_factor_used"]] == [first["intervals"], 1.0]
+
+
+@pytest.mark.parametrize("settings, message", [
+    (dict(bandwidth_factor="wide"), "bandwidth_factor must be 'auto' or a number > 0"),
+    (dict(bandwidth_factor=0), "bandwidth_factor must be 'auto' or a number > 0"),
+    (dict(time_budget=0), "time_budget must be a number of seconds > 0"),
+    (dict(time_budget="fast"), "time_budget must be a number of seconds > 0"),
+])
+def test_bad_bandwidth_or_budget_is_named(settings, message):
+    with pytest.raises(SettingsError, match=message):
+        calibrate(synthetic("radial").train, "bspline", **settings)
+
+
+def test_cli_takes_auto_bandwidth_and_prints_the_curve(tmp_path, capsys):
+    obs = tmp_path / "train.json"
+    obs.write_text(json.dumps(synthetic("asymmetric").train.to_json()))
+    assert main(["calibrate", str(obs), "-q", "--core", "none", "--bandwidth-factor", "auto",
+                 "--time-budget", "1e-9"]) == 0
+    printed = capsys.readouterr().out
+    assert "bandwidth factor" in printed and "skipped (time budget)" in printed
+    with pytest.raises(SystemExit) as bad:  # argparse rejects it before anything runs
+        main(["calibrate", str(obs), "-q", "--bandwidth-factor", "wide"])
+    assert bad.value.code == 2 and "--bandwidth-factor: expected a number or auto" in capsys.readouterr().err

@@ -3,29 +3,34 @@ and 9 of Wang et al. 2026 beside the paper's numbers, the synthetic hold-out
 set, and the validation of the B-spline projection uncertainty.
 
     python -m benchmarks compare [--kinds radial,fisheye,asymmetric]
-        [--sigmas 0.1,0.3,0.5,1.0,2.0] [--splits 5] [--realisations 50] [--json OUT]
+        [--sections compare,noise,uncertainty,mrcal] [--sigmas 0.1,0.3,0.5,1.0,2.0]
+        [--splits 5] [--realisations 50] [--real babelcalib-ov-plane-fisheye] [--json OUT]
 
-mrcal (optional, a python3.12 venv; see stack-facts.md) is run when
-``FREECAL_MRCAL_PYTHON`` names its interpreter; otherwise skipped silently.
+The mrcal side by side (``mrcal_bridge.py``) runs when ``FREECAL_MRCAL_PYTHON``
+names mrcal's interpreter (a Python 3.12 venv: README, "Side by side with mrcal");
+otherwise that section is skipped with a note.  ``--sections mrcal`` runs it
+alone in a few minutes.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 
 import numpy as np
 
 from backend.commands.output import table as print_table
-from calib_core import camera, synth
-from calib_core.compare import compare
+from calib_core import babelcalib, metrics, synth
+from calib_core.compare import compare, validation_residuals
 from calib_core.errors import CalibError
 from calib_core.observations import Observations, View
 from calib_core.pipeline import calibrate, to_data
 from calib_core.solve import Data, SolveSettings, levenberg_marquardt
 from calib_core.uncertainty import aligned_projection, projection_uncertainty
+
+from . import mrcal_bridge
+from .bench_detect import DATA
 
 METHODS = ["zhang", "rational", "fisheye", "mls", "tps", "bspline"]
 # Table 4 (overall rmse px; radial, fisheye, asymmetric); BabelCalib = KB 9th order, MC-Calib = rational 8.
@@ -34,6 +39,8 @@ PAPER_T4 = {"bspline": (0.393, 0.444, 0.797), "zhang": (3.42, 4.57, 16.9), "fish
 PAPER_T8 = "ours: calibration 0.27 → validation 0.36 px (8/2 views, 5 splits)"
 PAPER_T9 = "ours: centre 0.236 px, edge 0.256 px"
 PAPER_T5 = "ours at σ = 0.1: 0.28 … 0.77 px; grows about linearly with σ"
+SECTIONS = ("compare", "noise", "uncertainty", "mrcal")
+REAL_SET = "babelcalib-ov-plane-fisheye"  # the lens past 180°: train/ → test/
 
 
 def table(headers, rows) -> None:
@@ -110,21 +117,7 @@ def uncertainty_check(kind: str, realisations: int, sigma: float = 0.3, seed: in
             "ratio_p90": float(np.percentile(ratio, 90)), "within_30pct": float(np.mean(np.abs(ratio - 1) <= 0.3))}
 
 
-def main(argv: list[str]) -> int:
-    ap = argparse.ArgumentParser(prog="python -m benchmarks compare")
-    ap.add_argument("--kinds", default=",".join(synth.KINDS))
-    ap.add_argument("--methods", default=",".join(METHODS))
-    ap.add_argument("--sigmas", default="0.1,0.3,0.5,1.0,2.0")
-    ap.add_argument("--splits", type=int, default=5)
-    ap.add_argument("--realisations", type=int, default=50)
-    ap.add_argument("--holdout-every", type=int, default=4, help="use every N-th hold-out corner (0: skip the hold-out set)")
-    ap.add_argument("--json", help="also write every number here")
-    a = ap.parse_args(argv)
-    kinds, methods = a.kinds.split(","), a.methods.split(",")
-    sigmas = [float(x) for x in a.sigmas.split(",") if x]
-    sys.stdout.reconfigure(line_buffering=True)  # tables appear as they are ready
-    results = run_compare(kinds, a.splits, methods, a.holdout_every)
-
+def print_compare(results: dict, kinds, methods, splits: int, holdout_every: int) -> None:
     def val(kind, m, key):
         e = results[kind]["methods"].get(m, {})
         return e.get(key, float("nan")) if "error" not in e else float("nan")
@@ -132,7 +125,7 @@ def main(argv: list[str]) -> int:
     print("Table 4: overall rmse [px, per point], ours (paper) — synthetic, σ = 0.3, 10 views")
     table(["method"] + kinds, [[m] + [f"{val(k, m, 'rmse'):.3f} ({PAPER_T4[m][synth.KINDS.index(k)]})" for k in kinds]
                                for m in methods])
-    print(f"Table 8: cross-validation over views ({a.splits} splits) [rmse px]: calibration → validation (+increase)."
+    print(f"Table 8: cross-validation over views ({splits} splits) [rmse px]: calibration → validation (+increase)."
           f"  Paper {PAPER_T8}")
     table(["method"] + kinds, [[m] + [
         (lambda cv: f"{cv['calibration_rmse']['mean']:.3f}±{cv['calibration_rmse']['std']:.3f} → "
@@ -142,9 +135,9 @@ def main(argv: list[str]) -> int:
     print(f"Table 9: centre / edge rmse [px].  Paper {PAPER_T9}")
     table(["method"] + kinds, [[m] + [f"{val(k, m, 'rmse_center'):.3f} / {val(k, m, 'rmse_edge'):.3f}" for k in kinds]
                                for m in methods])
-    print(f"Synthetic hold-out views (noise-free, whole image, every {a.holdout_every}th corner; pose-only refit) [rmse px]"
-          if a.holdout_every else "")
-    if a.holdout_every:
+    if holdout_every:
+        print(f"Synthetic hold-out views (noise-free, whole image, every {holdout_every}th corner; pose-only refit)"
+              " [rmse px]")
         table(["method"] + kinds, [[m] + [val(k, m, "holdout_rmse") for k in kinds] for m in methods])
     print("Verdict (lowest cross-validated rmse) and the spatial-structure test of its validation residuals")
     table(["kind", "verdict", "cv rmse", "neighbour rho", "p", "structured"],
@@ -157,26 +150,110 @@ def main(argv: list[str]) -> int:
             if "error" in results[k]["methods"].get(m, {}):
                 print(f"{k} / {m}: {results[k]['methods'][m]['error']}")
 
-    sweep = noise_sweep(kinds, sigmas, methods) if sigmas else {}
-    if sweep:
+
+def print_uncertainty(unc: list[dict], realisations: int) -> None:
+    print(f"B-spline projection uncertainty: predicted vs observed over {realisations} noise draws "
+          "(per-axis rms spread, grid pixels near observed corners)")
+    table(["kind", "σ est", "pixels", "pred median", "emp median", "ratio median", "p10", "p90", "within 30 %"],
+          [[u["kind"], u["sigma_estimated"], u["n_pixels"], u["predicted_median"], u["empirical_median"],
+            u["ratio_median"], u["ratio_p10"], u["ratio_p90"], u["within_30pct"]] for u in unc])
+
+
+def side_by_side_sets(kinds, holdout_every: int, real: str):
+    """(name, train, hold-out) for the mrcal comparison: the synthetic kinds
+    (the hold-out thinned as for the compare tables) and the real set, if present."""
+    for k in kinds:
+        s = synth.generate(k)
+        yield k, s.train, thin(s.holdout, holdout_every) if holdout_every else s.holdout
+    folder = DATA / real if real else None
+    if folder and folder.is_dir():
+        board = next(folder.glob("*.dsc"))
+        yield real, babelcalib.load(folder / "train", board), babelcalib.load(folder / "test", board)
+    elif real:
+        print(f"(real set {real} not found under {DATA}: skipped)")
+
+
+def freecal_bspline(train, test) -> dict:
+    t0 = time.process_time()  # CPU time, as mrcal_fit.py measures: the machine may be shared
+    cal = calibrate(train, "bspline")
+    seconds = time.process_time() - t0
+    r, _ = validation_residuals(cal, test)  # pose-only refit, as mrcal_fit.holdout does
+    st = cal.settings
+    return {"seconds": seconds, "train_rmse": cal.metrics["rmse"], "train_rmse_axis": cal.metrics["rmse_axis"],
+            "test_rmse": metrics.rmse(r), "test_rmse_axis": metrics.rmse_axis(r),
+            "outliers": cal.diagnostics["excluded_points"]["outliers"],
+            "model": f"{st.get('base', 'pinhole')} base, core {st.get('core_used')}, "
+                     f"{'x'.join(map(str, st.get('intervals_used', [])))} intervals"}
+
+
+def mrcal_side_by_side(kinds, holdout_every: int, real: str, python: str) -> dict:
+    """freecal's default B-spline against mrcal's OPENCV8 and splined models on
+    the same corners; ratios are mrcal / freecal (issue target: hold-out ≥ 1
+    against the splined model, time ≥ 3)."""
+    out, rows = {}, []
+    for name, train, test in side_by_side_sets(kinds, holdout_every, real):
+        res = {"freecal bspline": freecal_bspline(train, test)}
+        res.update({f"mrcal {m}": r for m, r in mrcal_bridge.run(train, test, python).items()})
+        ours = res["freecal bspline"]
+        for method, r in res.items():
+            if "error" in r:
+                rows.append([name, method, r["error"], "", "", "", "", ""])
+                continue
+            rows.append([name, method, r["train_rmse"], r["test_rmse"], r["test_rmse_axis"], r["seconds"],
+                         r["test_rmse"] / ours["test_rmse"], r["seconds"] / ours["seconds"]])
+        out[name] = res
+        print(f"[{name} done]", flush=True)
+    print("Side by side with mrcal, same corners: rmse [px, per point; hold-out also per axis, mrcal's figure] "
+          "after a pose-only refit of the fixed model; seconds = CPU time of one calibration (seed included)")
+    table(["set", "method", "train", "hold-out", "hold-out axis", "seconds", "hold-out / freecal",
+           "time / freecal"], rows)
+    for name, res in out.items():
+        for m, r in res.items():
+            if "error" not in r:
+                print(f"{name} / {m}: {r.get('lensmodel') or r.get('model')} ({r['outliers']} outliers rejected)")
+    return out
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks compare")
+    ap.add_argument("--kinds", default=",".join(synth.KINDS))
+    ap.add_argument("--methods", default=",".join(METHODS))
+    ap.add_argument("--sections", default=",".join(SECTIONS), help=f"any of {', '.join(SECTIONS)}")
+    ap.add_argument("--sigmas", default="0.1,0.3,0.5,1.0,2.0")
+    ap.add_argument("--splits", type=int, default=5)
+    ap.add_argument("--realisations", type=int, default=50)
+    ap.add_argument("--holdout-every", type=int, default=4, help="use every N-th hold-out corner (0: compare skips the hold-out set, mrcal uses all)")
+    ap.add_argument("--real", default=REAL_SET, help="real set of ../shared/data for the mrcal section ('' to skip)")
+    ap.add_argument("--json", help="also write every number here")
+    a = ap.parse_args(argv)
+    kinds, methods, sections = a.kinds.split(","), a.methods.split(","), a.sections.split(",")
+    unknown = set(sections) - set(SECTIONS)
+    if unknown:
+        ap.error(f"unknown section(s) {sorted(unknown)}; expected {', '.join(SECTIONS)}")
+    sigmas = [float(x) for x in a.sigmas.split(",") if x]
+    sys.stdout.reconfigure(line_buffering=True)  # tables appear as they are ready
+    out: dict = {}
+    if "compare" in sections:
+        out["compare"] = run_compare(kinds, a.splits, methods, a.holdout_every)
+        print_compare(out["compare"], kinds, methods, a.splits, a.holdout_every)
+
+    if "noise" in sections and sigmas:
+        sweep = noise_sweep(kinds, sigmas, methods)
         print(f"Table 5: noise sweep, overall rmse [px].  Paper {PAPER_T5}")
         table(["kind", "σ"] + methods, [[k, s] + [sweep[k, s, m] for m in methods] for k in kinds for s in sigmas])
+        out["noise_sweep"] = [{"kind": k, "sigma": s, "method": m, "rmse": v} for (k, s, m), v in sweep.items()]
 
-    unc = []
-    if a.realisations > 0 and "bspline" in methods:
-        for k in kinds:
-            unc.append(uncertainty_check(k, a.realisations))
-        print(f"B-spline projection uncertainty: predicted vs observed over {a.realisations} noise draws "
-              "(per-axis rms spread, grid pixels near observed corners)")
-        table(["kind", "σ est", "pixels", "pred median", "emp median", "ratio median", "p10", "p90", "within 30 %"],
-              [[u["kind"], u["sigma_estimated"], u["n_pixels"], u["predicted_median"], u["empirical_median"],
-                u["ratio_median"], u["ratio_p10"], u["ratio_p90"], u["within_30pct"]] for u in unc])
-    mrcal_python = os.environ.get("FREECAL_MRCAL_PYTHON")
-    if mrcal_python and os.path.exists(mrcal_python):
-        print("mrcal: interpreter found, but the mrcal bridge is not implemented yet (skipped)")
+    if "uncertainty" in sections and a.realisations > 0:
+        out["uncertainty"] = [uncertainty_check(k, a.realisations) for k in kinds]
+        print_uncertainty(out["uncertainty"], a.realisations)
+
+    if "mrcal" in sections:
+        python = mrcal_bridge.interpreter()
+        if python:
+            out["mrcal"] = mrcal_side_by_side(kinds, a.holdout_every, a.real, python)
+        else:
+            print("mrcal: skipped (set FREECAL_MRCAL_PYTHON to the python of a venv with mrcal; README)")
     if a.json:
         with open(a.json, "w") as f:
-            json.dump({"compare": results, "noise_sweep": [{"kind": k, "sigma": s, "method": m, "rmse": v}
-                                                           for (k, s, m), v in sweep.items()],
-                       "uncertainty": unc}, f, indent=1, default=float)
+            json.dump(out, f, indent=1, default=float)
     return 0

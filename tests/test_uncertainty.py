@@ -1,5 +1,6 @@
 """B-spline projection uncertainty against the spread over noise realisations."""
 import numpy as np
+import pytest
 
 from calib_core import calibrate, camera, synth
 from calib_core.pipeline import to_data
@@ -7,9 +8,10 @@ from calib_core.solve import Data, SolveSettings, levenberg_marquardt
 from calib_core.uncertainty import aligned_projection, projection_uncertainty
 
 
-def test_predicted_projection_spread_matches_noise_realisations():
+@pytest.mark.parametrize("kind", ["radial", "asymmetric"])  # an exact parametric core; a lens none represents
+def test_predicted_projection_spread_matches_noise_realisations(kind):
     sigma, rng = 0.3, np.random.default_rng(1)
-    clean = synth.generate("radial", sigma=0.0, seed=0, n_views=6)
+    clean = synth.generate(kind, sigma=0.0, seed=0, n_views=6)
     data, _, _ = to_data(clean.train)
     keep = np.arange(data.n_points) % 2 == 0  # half the corners: a faster solve, the same question
     data = Data(data.object_points[keep], data.image_points[keep], data.view_index[keep], data.n_views)

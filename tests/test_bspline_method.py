@@ -63,6 +63,16 @@ def test_paper_model_without_core_reaches_the_floor():
     assert evaluate(cal, s.holdout)["rmse"] < 0.2
 
 
+def test_corners_crossing_the_pinhole_reach_during_the_fit_are_scored():
+    """A wide lens on few views: some corners cross 85° off axis while the
+    paper model is fitted; the final score must use the corners it has then."""
+    from calib_core import synth
+
+    train = synth.generate("fisheye", sigma=0.0, n_views=6).train
+    cal = calibrate(train, "bspline", outlier_sigma=0, knots="uniform", intervals=(4, 4))
+    assert cal.metrics["rmse"] < 0.05
+
+
 def test_too_few_views_is_a_clear_error():
     s = synthetic("radial")
     with pytest.raises(DataError, match="at least 3 views"):

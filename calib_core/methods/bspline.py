@@ -327,19 +327,6 @@ def _choose_smoothing(problem: FieldProblem, samples, response, weights, s: BSpl
     return m, factor, lam, curve
 
 
-def _free(model) -> np.ndarray | None:
-    """Parameters the joint fit moves. Over a core, the core's distortion
-    coefficients stay where its own calibration put them: left free, they
-    trade places with the field along a near-flat valley, and the rational
-    core's denominators then bend wildly outside the corners (measured: hold-out
-    errors 1.5-2x larger at the image corners, and 3-10x more iterations)."""
-    if not isinstance(model, HybridModel):
-        return None
-    free = np.ones(model.n_params, dtype=bool)
-    free[4 : model.core.n_params] = False  # [fx, fy, cx, cy] stay free
-    return free
-
-
 def fit_bspline(data: Data, image_size, s: BSplineSettings, progress: Progress) -> Fit:
     """The paper's model, or a field over a core; ``core="auto"`` fits both
     and keeps the core only if it predicts the corners clearly better."""
@@ -399,8 +386,7 @@ def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: 
         # A first joint fit takes out the initial camera's errors, so that the
         # choice of knots and smoothing sees the lens alone.
         progress("joint optimisation", 0.2)
-        first = levenberg_marquardt(model, poses, sub, SolveSettings(min(s.max_iterations, 50), 1e-4,
-                                                                     free_params=_free(model)))
+        first = levenberg_marquardt(model, poses, sub, SolveSettings(min(s.max_iterations, 50), 1e-4))
         progress("knots", 0.45)
         samples, response = problem.samples(first.model, first.poses, sub)
         weights = weights_of(samples, response)
@@ -431,7 +417,7 @@ def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: 
     def on_iteration(it: int, cost: float) -> None:
         progress("joint optimisation", 0.55 + 0.4 * min(1.0, it / 30))
 
-    res = levenberg_marquardt(model, poses, sub, SolveSettings(s.max_iterations, s.ftol, free_params=_free(model)),
+    res = levenberg_marquardt(model, poses, sub, SolveSettings(s.max_iterations, s.ftol),
                               on_iteration)
     settings = dataclasses.asdict(s)
     settings.update(res.model.settings_json())
@@ -440,9 +426,12 @@ def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: 
     settings["knot_breaks_u"] = breaks[0].tolist()
     settings["knot_breaks_v"] = breaks[1].tolist()
     settings["core_used"] = "none" if core == "none" else res.model.core.kind
+    # The score at the solution, with the samples' weights recomputed: a
+    # corner may have crossed the pinhole's reach during the fit.
     final_samples, final_response = problem.samples(res.model, res.poses, sub)
+    final_weights = weights_of(final_samples, final_response)
     b = res.model.field.design(final_samples).matrix(res.model.field.n_controls)
-    score = gcv_curve(b, weights / weights.mean(axis=0), res.model.field.bending(),
+    score = gcv_curve(b, final_weights / final_weights.mean(axis=0), res.model.field.bending(),
                       gauge_rows(res.model.field, problem.gauge_point) * GAUGE_WEIGHT,
                       final_response - b @ problem.prior_control(res.model.field).reshape(-1, 2),
                       s.lambda_reg, np.array([lam])).score[0]

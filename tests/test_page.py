@@ -34,6 +34,16 @@ SHOTS = ROOT / "test-artifacts" / "page"
 SETTINGS = {"knots": "uniform", "lambda_smooth": "0.1", "max_iterations": "30"}  # intervals: auto (GCV)
 
 
+def fill_settings(page) -> None:
+    """Open the settings panel and enter SETTINGS, whatever each field's kind."""
+    page.click("#settings summary")
+    for key, value in SETTINGS.items():
+        if page.eval_on_selector(f"#setting-{key}", "e => e.tagName") == "SELECT":
+            page.select_option(f"#setting-{key}", value)
+        else:
+            page.fill(f"#setting-{key}", value)
+
+
 @pytest.fixture(scope="module")
 def browser():
     sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is in the test extra: make test")
@@ -82,12 +92,7 @@ def test_upload_watch_review_download_and_3d(browser, service, shots, tmp_path):
 
     page.set_input_files("#files", [str(p) for p in images] + [str(blank)])
     page.select_option("#method", "bspline")
-    page.click("#settings summary")
-    for key, value in SETTINGS.items():
-        if page.eval_on_selector(f"#setting-{key}", "e => e.tagName") == "SELECT":
-            page.select_option(f"#setting-{key}", value)
-        else:
-            page.fill(f"#setting-{key}", value)
+    fill_settings(page)
     page.screenshot(path=shots / "02-filled.png")
     page.click("#submit")
 
@@ -207,12 +212,7 @@ def test_browser_with_a_token_asks_once_then_sends_it_everywhere(browser, guarde
 
     page.set_input_files("#files", [str(p) for p in images])
     page.select_option("#method", "bspline")
-    page.click("#settings summary")
-    for key, value in SETTINGS.items():
-        if page.eval_on_selector(f"#setting-{key}", "e => e.tagName") == "SELECT":
-            page.select_option(f"#setting-{key}", value)
-        else:
-            page.fill(f"#setting-{key}", value)
+    fill_settings(page)
     page.click("#submit")
     page.wait_for_selector("#metrics-overall", timeout=180_000)
     # <img src> and links cannot send headers: they carry ?token=

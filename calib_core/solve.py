@@ -211,13 +211,14 @@ def levenberg_marquardt(
     r, jac = _assemble(model, poses, data, settings)
     jtj, g = (jac.T @ jac), jac.T @ r
     check_step = False  # is the next damped step also the convergence test?
+    converged = "converged", f"a Gauss-Newton step would gain less than ftol={settings.ftol:g} of the cost"
     while it < settings.max_iterations:
-        it += 1
         delta = _solve_damped(jtj, g, mu)
         if check_step and -0.5 * float(delta @ g) <= settings.ftol * cost:
-            status, message = "converged", f"a Gauss-Newton step would gain less than ftol={settings.ftol:g} of the cost"
+            status, message = converged
             break
         check_step = False
+        it += 1
         new_model, new_poses = _apply(model, poses, delta, settings)
         new_cost = _cost(new_model, new_poses, data, settings)
         diag = jtj.diagonal()
@@ -243,7 +244,7 @@ def levenberg_marquardt(
                 continue
             gn = _solve_damped(jtj, g, 1e-12)
             if -0.5 * float(gn @ g) <= settings.ftol * cost:
-                status, message = "converged", f"a Gauss-Newton step would gain less than ftol={settings.ftol:g} of the cost"
+                status, message = converged
                 break
         else:
             if step_small or mu > 1e12:

@@ -31,7 +31,8 @@ ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox"
         "--disable-component-update", "--disable-sync", "--no-first-run"]
 SHOTS = ROOT / "test-artifacts" / "page"
 # a quick B-spline fit: the page test is about the page, not the method
-SETTINGS = {"knots": "uniform", "lambda_smooth": "0.1", "max_iterations": "30"}  # intervals: auto (GCV)
+SETTINGS = {"knots": "uniform", "lambda_smooth": "0.1", "max_iterations": "30",  # intervals: auto (GCV)
+            "bandwidth_factor": "1.2", "time_budget": "60"}
 
 
 def fill_settings(page) -> None:
@@ -147,6 +148,10 @@ def test_upload_watch_review_download_and_3d(browser, service, shots, tmp_path):
     doc = json.loads(Path(dl.value.path()).read_text())
     cal = Calibration.from_json(doc)
     assert cal.method == "bspline" and len(cal.views) >= len(images) - 2
+    # what the user typed in the settings panel is what the calibration used
+    used = doc["settings"]
+    assert (used["knots"], used["lambda_smooth"], used["bandwidth_factor_used"], used["time_budget"]) == \
+        ("uniform", 0.1, 1.2, 60)
 
     # the 3D view: embedded, and its scene (server side) holds the job's objects
     page.click("#open-3d")

@@ -6,6 +6,8 @@ const BSPLINE = [
   { key: "knots", label: "Knot placement", options: ["kde", "kde-paper", "uniform"], def: "kde" },
   { key: "intervals", label: "Intervals per axis", placeholder: "auto (GCV)", type: "text" },
   { key: "bandwidth", label: "KDE bandwidth", options: ["scott", "silverman"], def: "scott" },
+  { key: "bandwidth_factor", label: "Bandwidth factor", placeholder: "1.0 (or auto)", type: "text" },
+  { key: "time_budget", label: "Search time budget [s]", placeholder: "none", type: "number" },
   { key: "window_ratio", label: "Window ratio", placeholder: "0.05", type: "number" },
   { key: "weighting", label: "Weighting", options: ["local_std", "uniform", "magnitude", "gradient"], def: "local_std" },
   { key: "lambda_reg", label: "λ reg (L2)", placeholder: "1e-6", type: "number" },

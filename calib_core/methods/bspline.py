@@ -13,9 +13,11 @@ regularised towards zero (``models/hybrid.py``).
 
 With ``intervals="auto"`` and ``lambda_smooth="auto"`` (the defaults) a first
 joint fit on a middle-sized grid takes out the initial camera's errors; then
-the knot count and the smoothing weight are chosen by generalised
-cross-validation of the control-point problem (``smoothing.py``), and the
-joint fit is run again on that grid.
+the knot count and the smoothing weight (and, with
+``bandwidth_factor="auto"``, the KDE bandwidth) are chosen by generalised
+cross-validation of the control-point problem (``smoothing.py``), within
+``time_budget`` seconds if one is set, and the joint fit is run again on that
+grid.
 """
 from __future__ import annotations
 

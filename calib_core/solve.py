@@ -20,6 +20,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg
 
 from . import camera
+from .gram import gram
 
 
 class Cancelled(Exception):
@@ -69,6 +70,10 @@ class SolveSettings:
     fix_model: bool = False  # refit the poses only (hold-out evaluation)
     free_params: np.ndarray | None = None  # (n_params,) bool: model parameters to fit (None: the model's free_mask)
 
+
+# Up to this many unknowns the normal equations are dense (a Cholesky
+# factorisation of 3000² takes ~0.3 s on one core); beyond, sparse.
+DENSE_LIMIT = 3000
 
 # Marquardt damping (relative to JᵀJ's diagonal) below which a damped step is a
 # Gauss-Newton step for the convergence test.
@@ -171,11 +176,18 @@ def _apply(model, poses, delta, settings):
     return new_model, new_poses
 
 
+def _normal_equations(jac: sp.csr_matrix, r: np.ndarray):
+    """(JᵀJ, Jᵀr): JᵀJ dense up to DENSE_LIMIT unknowns (formed by the
+    compiled kernel, factorised densely), sparse beyond."""
+    jtj = gram(jac) if jac.shape[1] <= DENSE_LIMIT else (jac.T @ jac).tocsr()
+    return jtj, jac.T @ r
+
+
 def _solve_damped(jtj, g: np.ndarray, mu: float) -> np.ndarray:
     diag = jtj.diagonal()
     d = mu * np.maximum(diag, 1e-12 * max(diag.max(), 1.0))
-    if jtj.shape[0] <= 3000:
-        a = jtj.toarray() if sp.issparse(jtj) else jtj
+    if not sp.issparse(jtj):
+        a = jtj.copy()
         a[np.diag_indices_from(a)] += d
         try:
             return scipy.linalg.cho_solve(scipy.linalg.cho_factor(a, check_finite=False), -g, check_finite=False)
@@ -209,7 +221,7 @@ def levenberg_marquardt(
     status, message = "max_iterations", f"stopped after {settings.max_iterations} iterations"
     it = 0
     r, jac = _assemble(model, poses, data, settings)
-    jtj, g = (jac.T @ jac), jac.T @ r
+    jtj, g = _normal_equations(jac, r)
     check_step = False  # is the next damped step also the convergence test?
     converged = "converged", f"a Gauss-Newton step would gain less than ftol={settings.ftol:g} of the cost"
     while it < settings.max_iterations:
@@ -233,7 +245,7 @@ def levenberg_marquardt(
             if callback is not None:
                 callback(it, cost)
             r, jac = _assemble(model, poses, data, settings)
-            jtj, g = (jac.T @ jac), jac.T @ r
+            jtj, g = _normal_equations(jac, r)
             # Converged when even an undamped Gauss-Newton step would gain
             # less than ftol of the cost: a heavily damped step alone can be
             # small (and gain little) far from the minimum. Once the damping

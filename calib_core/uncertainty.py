@@ -36,6 +36,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import camera
+from .gram import gram
 from .solve import Data, SolveSettings, _assemble
 
 
@@ -91,7 +92,7 @@ def model_covariance(model, poses: np.ndarray, data: Data, sigma: float | None =
     n_rows, n_views = 2 * data.n_points, data.n_views
     n_m = model.n_params if free is None else int(np.sum(free))
     jd = jac[:n_rows]
-    h = (jac.T @ jac).toarray()
+    h = gram(jac)
     m_data = (jd.T @ jd).toarray()
     h_mm, h_mp = h[:n_m, :n_m], h[:n_m, n_m:]
     idx = np.arange(6)
@@ -131,7 +132,7 @@ def full_covariance(model, poses: np.ndarray, data: Data, sigma: float | None = 
     r, jac = _assemble(model, poses, data, SolveSettings(free_params=free))
     n_rows = 2 * data.n_points
     jd = jac[:n_rows]
-    h = (jac.T @ jac).toarray()
+    h = gram(jac)
     m_data = (jd.T @ jd).toarray()
     h_inv = _inverse(h)
     dof = float(np.sum(h_inv * m_data.T))  # tr(H⁻¹ M)

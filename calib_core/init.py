@@ -24,7 +24,7 @@ from scipy.spatial.transform import Rotation
 from . import camera
 from .errors import DataError
 from .models.fisheye import FisheyeModel
-from .solve import Data, SolveSettings, levenberg_marquardt
+from .solve import Data, SolveSettings, levenberg_marquardt, spread_views
 
 MIN_POINTS_PER_VIEW = 6
 
@@ -114,15 +114,13 @@ def _subsample(data: Data, max_views: int, per_view: int, rng: np.random.Generat
     """At most ``per_view`` corners of each of at most ``max_views`` views
     (spread over the set): enough to score and shape a camera, and the cost
     no longer grows with the number of views."""
-    views = np.unique(np.linspace(0, data.n_views - 1, min(max_views, data.n_views)).round().astype(int))
+    data = spread_views(data, max_views)
     keep = []
-    for k in views:
+    for k in range(data.n_views):
         idx = np.flatnonzero(data.view_index == k)
         keep.append(idx if len(idx) <= per_view else np.sort(rng.choice(idx, per_view, replace=False)))
     keep = np.concatenate(keep)
-    renumber = np.full(data.n_views, -1)
-    renumber[views] = np.arange(len(views))
-    return Data(data.object_points[keep], data.image_points[keep], renumber[data.view_index[keep]], len(views))
+    return Data(data.object_points[keep], data.image_points[keep], data.view_index[keep], data.n_views)
 
 
 def check_planar(data: Data) -> None:

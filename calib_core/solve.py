@@ -45,6 +45,15 @@ class Data:
         return len(self.image_points)
 
 
+def spread_views(data: Data, max_views: int) -> Data:
+    """At most ``max_views`` of the views, evenly spread over the set, renumbered."""
+    views = np.unique(np.linspace(0, data.n_views - 1, min(max_views, data.n_views)).round().astype(int))
+    renumber = np.full(data.n_views, -1)
+    renumber[views] = np.arange(len(views))
+    keep = renumber[data.view_index] >= 0
+    return Data(data.object_points[keep], data.image_points[keep], renumber[data.view_index[keep]], len(views))
+
+
 @dataclass
 class SolveResult:
     """Like ``scipy.optimize.least_squares``' result, for a model and poses."""

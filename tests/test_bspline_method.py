@@ -73,6 +73,18 @@ def test_corners_crossing_the_pinhole_reach_during_the_fit_are_scored():
     assert cal.metrics["rmse"] < 0.05
 
 
+def test_a_large_set_decides_the_core_on_a_spread_of_views_and_fits_all():
+    from calib_core import synth
+    from calib_core.methods.bspline import DECISION_VIEWS
+
+    s = synth.generate("radial", 0.3, 0, n_views=DECISION_VIEWS + 4)
+    cal = calibrate(s.train, "bspline")
+    assert f"decided on {DECISION_VIEWS} of the {DECISION_VIEWS + 4} views" in cal.diagnostics["core_choice"]
+    assert len(cal.views) == DECISION_VIEWS + 4 and all(v.n_points > 0 for v in cal.views)
+    assert cal.settings["core_used"] != "none"  # OpenCV's own lens: the core pays
+    assert evaluate(cal, s.holdout)["rmse"] < 0.06
+
+
 def test_too_few_views_is_a_clear_error():
     s = synthetic("radial")
     with pytest.raises(DataError, match="at least 3 views"):

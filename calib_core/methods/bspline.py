@@ -36,7 +36,7 @@ from ..metrics import design_diagnostics
 from ..models.bspline import GAUGE_WEIGHT, BSplineModel, gauge_rows
 from ..models.hybrid import HybridModel
 from ..smoothing import LAMBDA_GRID, gcv_curve
-from ..solve import Data, SolveSettings, levenberg_marquardt
+from ..solve import Data, SolveSettings, levenberg_marquardt, spread_views
 from .common import Fit, Progress
 from .fisheye import FisheyeSettings, fit_fisheye
 from .opencv import RationalSettings, fit_opencv
@@ -49,6 +49,8 @@ AUTO_INTERVALS = (6, 8, 10, 12, 15)
 # with a time budget the search covers every grid at 1.0 before the others.
 AUTO_BANDWIDTH_FACTORS = (1.0, 1.2, 0.8, 1.5)
 CORES = ("auto", "none", "rational", "fisheye")
+# Above this many views, core="auto" decides on this many (spread over the set).
+DECISION_VIEWS = 20
 # Knot counts within this fraction of the best GCV score count as equally good:
 # the coarsest of them is taken (see _choose_smoothing).
 GCV_TOLERANCE = 0.02
@@ -342,12 +344,21 @@ def fit_bspline(data: Data, image_size, s: BSplineSettings, progress: Progress) 
         chosen = _fit_field(data, image_size, s, "fisheye", progress)[0]
         reason = f"{int((~seen).sum())} corners lie past the pinhole's reach: Kannala-Brandt core"
     else:
-        plain, plain_score = _fit_field(data, image_size, s, "none", _scaled(progress, 0.0, 0.5))
-        cored, cored_score = _fit_field(data, image_size, s, "rational", _scaled(progress, 0.5, 1.0))
+        # Whether a core pays is a property of the lens, not of the number of
+        # views: on a large set it is decided on DECISION_VIEWS of them, and
+        # only the chosen model is fitted to all.
+        sample = data if data.n_views <= DECISION_VIEWS else spread_views(data, DECISION_VIEWS)
+        share = 1.0 if sample is data else 0.5
+        plain, plain_score = _fit_field(sample, image_size, s, "none", _scaled(progress, 0.0, 0.5 * share))
+        cored, cored_score = _fit_field(sample, image_size, s, "rational", _scaled(progress, 0.5 * share, share))
         better = cored_score < plain_score * (1 - GCV_TOLERANCE)
-        chosen = cored if better else plain
+        if sample is data:
+            chosen = cored if better else plain
+        else:
+            chosen = _fit_field(data, image_size, s, "rational" if better else "none", _scaled(progress, share, 1.0))[0]
         reason = (f"GCV of the field: {plain_score:.4f} px² without a core, {cored_score:.4f} px² over the rational "
-                  f"core; a core is kept only if it is more than {100 * GCV_TOLERANCE:.0f} % lower")
+                  f"core; a core is kept only if it is more than {100 * GCV_TOLERANCE:.0f} % lower"
+                  + ("" if sample is data else f" (decided on {sample.n_views} of the {data.n_views} views)"))
     chosen.diagnostics["core_choice"] = reason
     return chosen
 

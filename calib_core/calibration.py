@@ -146,7 +146,7 @@ class Calibration:
         reader = MODEL_TYPES.get(dist["type"])
         if reader is None:
             raise FormatError(f"distortion.type: unknown type {dist['type']!r}; known: {sorted(MODEL_TYPES)}")
-        model = reader.from_json(intrinsics, dist, base)
+        model = reader.from_json(intrinsics, dist, base).restored(doc.get("settings", {}))
         views = []
         for k, v in enumerate(doc.get("views", [])):
             try:

@@ -4,7 +4,7 @@ about what it cannot do. (The benchmark averages over seeds; these use one.)"""
 import numpy as np
 import pytest
 
-from calib_core import calibrate, evaluate
+from calib_core import Calibration, calibrate, evaluate
 from calib_core.errors import DataError, SettingsError
 from calib_core.metrics import noise_floor
 from calib_core.models.bspline import gauge_rows
@@ -53,6 +53,31 @@ def test_gauge_holds_the_field_flat_at_the_principal_point(results):
     values = gauge_rows(field, tuple(cal.settings["gauge"]["point"])) @ np.concatenate(
         [field.control[..., 0].ravel(), field.control[..., 1].ravel()])
     assert np.max(np.abs(values)) < 1e-4
+
+
+def test_a_lens_opencv_models_exactly_gets_that_model_and_no_field(results):
+    """On OpenCV's own lens a field can only fit noise: GCV keeps the core
+    alone, the very calibration the zhang method gives on the same corners."""
+    cal, _ = results["radial"]
+    assert cal.settings["core_used"] == "zhang" and cal.model.field_held
+    assert not cal.model.field.control.any()
+    assert "OpenCV 5-coefficient model alone" in cal.diagnostics["core_choice"]
+    zhang = calibrate(synthetic("radial").train, "zhang")
+    rays = np.array([[0.0, 0.0, 1.0], [0.8, -0.6, 1.0], [-1.2, 1.1, 1.0]])
+    assert np.allclose(cal.project(rays), zhang.project(rays), atol=1e-9)
+    assert np.isclose(cal.metrics["rmse"], zhang.metrics["rmse"], rtol=1e-12)
+
+
+@pytest.mark.parametrize("kind", ["radial", "asymmetric"])
+def test_a_saved_calibration_keeps_what_its_covariance_needs(results, kind):
+    """The regularisers, the gauge and a held field come back from the JSON
+    (its settings), so a reloaded calibration's uncertainty is the fit's own."""
+    cal, _ = results[kind]
+    back = Calibration.from_json(cal.to_json())
+    assert np.array_equal(back.model.free_mask(), cal.model.free_mask())
+    assert (back.model.lambda_reg, back.model.lambda_smooth) == (cal.model.lambda_reg, cal.model.lambda_smooth)
+    assert back.model.gauge_point == cal.model.gauge_point
+    assert (back.model.prior()[1] != cal.model.prior()[1]).nnz == 0
 
 
 def test_paper_model_without_core_reaches_the_floor():

@@ -39,7 +39,7 @@ from ..smoothing import LAMBDA_GRID, gcv_curve
 from ..solve import Data, SolveSettings, levenberg_marquardt, spread_views
 from .common import Fit, Progress
 from .fisheye import FisheyeSettings, fit_fisheye
-from .opencv import RationalSettings, fit_opencv
+from .opencv import OpenCVSettings, RationalSettings, fit_opencv
 
 PINHOLE_MAX_ANGLE_DEG = camera.PINHOLE_MAX_ANGLE_DEG
 DOMAIN_MARGIN = 0.02  # of the domain's span, on every side
@@ -228,21 +228,19 @@ def ideal_field_problem(init, data: Data, image_size, s: BSplineSettings):
 
 
 # ---- a field over a parametric core -----------------------------------------------
-def fit_core(data: Data, image_size, core: str, progress: Progress):
-    """The parametric core ("rational" or "fisheye") calibrated alone, as its
-    own method does it, converged from several starts: (model, poses, excluded
-    corners (N,) bool, reason). The field then starts from what the core
-    truly misses."""
-    if core == "rational":
-        fit = fit_opencv(data, image_size, RationalSettings(), progress)
-    else:
-        fit = fit_fisheye(data, image_size, FisheyeSettings(), progress)
-    return core, fit.result.model, fit.result.poses, fit.excluded, fit.excluded_reason
+def fit_core(data: Data, image_size, core: str, progress: Progress) -> Fit:
+    """A parametric core ("zhang", "rational" or "fisheye") calibrated alone,
+    as its own method does it, converged from several starts. The field then
+    starts from what the core truly misses."""
+    if core == "fisheye":
+        return fit_fisheye(data, image_size, FisheyeSettings(), progress)
+    return fit_opencv(data, image_size, RationalSettings() if core == "rational" else OpenCVSettings(), progress)
 
 
-def core_field_problem(data: Data, image_size, s: BSplineSettings, core: str, progress: Progress):
-    core_name, core, core_poses, excluded, reason = fit_core(data, image_size, core, progress)
-    ok = ~excluded
+def core_field_problem(data: Data, image_size, s: BSplineSettings, core: str, progress: Progress,
+                       core_fit: Fit | None = None):
+    fit = core_fit or fit_core(data, image_size, core, progress)
+    core, core_poses, ok, reason = fit.result.model, fit.result.poses, ~fit.excluded, fit.excluded_reason
 
     def samples(model, poses, sub):
         core_model = model.core if isinstance(model, HybridModel) else model
@@ -254,12 +252,11 @@ def core_field_problem(data: Data, image_size, s: BSplineSettings, core: str, pr
         core_model = start.core if isinstance(start, HybridModel) else start
         return HybridModel(core_model, field, s.lambda_reg, lambda_smooth, gauge_point)
 
-    w, h = image_size
     gauge_point = (float(core.intrinsics[2]), float(core.intrinsics[3]))
     pc = camera.transform(core_poses, data.view_index[ok], data.object_points[ok])
     domain = _padded_box(np.vstack([_border(image_size), core.project(pc)]))
     problem = FieldProblem(domain, _border(image_size), gauge_point, lambda field: np.zeros((field.n_u, field.n_v, 2)), samples, make)
-    return problem, core, core_poses, ok, reason, core_name
+    return problem, core, core_poses, ok, reason
 
 
 # ---- shared steps ---------------------------------------------------------------------
@@ -332,8 +329,8 @@ def _choose_smoothing(problem: FieldProblem, samples, response, weights, s: BSpl
 
 
 def fit_bspline(data: Data, image_size, s: BSplineSettings, progress: Progress) -> Fit:
-    """The paper's model, or a field over a core; ``core="auto"`` fits both
-    and keeps the core only if it predicts the corners clearly better."""
+    """The paper's model, or a field over a core; ``core="auto"`` chooses
+    between them and the parametric cores alone (``_choose_model``)."""
     if s.core != "auto":
         return _fit_field(data, image_size, s, s.core, progress)[0]
     init = initialise(data, image_size)
@@ -342,32 +339,96 @@ def fit_bspline(data: Data, image_size, s: BSplineSettings, progress: Progress) 
         # Corners past the pinhole's reach: a lens beyond ~170°, where only the
         # Kannala–Brandt core represents every corner.
         chosen = _fit_field(data, image_size, s, "fisheye", progress)[0]
-        reason = f"{int((~seen).sum())} corners lie past the pinhole's reach: Kannala-Brandt core"
-    else:
-        # Whether a core pays is a property of the lens, not of the number of
-        # views: on a large set it is decided on DECISION_VIEWS of them, and
-        # only the chosen model is fitted to all.
-        sample = data if data.n_views <= DECISION_VIEWS else spread_views(data, DECISION_VIEWS)
-        share = 1.0 if sample is data else 0.5
-        plain, plain_score = _fit_field(sample, image_size, s, "none", _scaled(progress, 0.0, 0.5 * share))
-        cored, cored_score = _fit_field(sample, image_size, s, "rational", _scaled(progress, 0.5 * share, share))
-        better = cored_score < plain_score * (1 - GCV_TOLERANCE)
-        if sample is data:
-            chosen = cored if better else plain
+        chosen.diagnostics["core_choice"] = f"{int((~seen).sum())} corners lie past the pinhole's reach: Kannala-Brandt core"
+        return chosen
+    return _choose_model(data, image_size, s, progress)
+
+
+# core="auto": the candidates, simplest first, as (core, field fitted?, label).
+CANDIDATES = (("zhang", False, "OpenCV 5-coefficient model alone"),
+              ("rational", False, "rational model alone"),
+              ("none", True, "field without a core (the paper's model)"),
+              ("rational", True, "field over the rational core"))
+
+
+def _choose_model(data: Data, image_size, s: BSplineSettings, progress: Progress) -> Fit:
+    """Fit every candidate, score each by GCV of its corners (a core alone
+    has no field: its score is the weighted mean squared residual) and keep
+    the simplest within GCV_TOLERANCE of the lowest. A field is worth its
+    freedom only where it predicts the corners better: over a core that
+    already fits the lens (OpenCV's own model) it can only add noise, and the
+    core alone is returned, as a hybrid whose field is zero and held.
+
+    Whether a core or a field pays is a property of the lens, not of the
+    number of views: on a large set it is decided on DECISION_VIEWS of them,
+    and only the chosen model is fitted to all."""
+    sample = data if data.n_views <= DECISION_VIEWS else spread_views(data, DECISION_VIEWS)
+    share = 1.0 if sample is data else 0.5
+    cores = {core: fit_core(sample, image_size, core, _scaled(progress, 0.0, 0.1 * share)) for core in ("zhang", "rational")}
+    plain = _fit_field(sample, image_size, s, "none", _scaled(progress, 0.1 * share, 0.55 * share))
+    cored = _fit_field(sample, image_size, s, "rational", _scaled(progress, 0.55 * share, share), cores["rational"])
+    fits = [_core_alone(cores["zhang"], sample, image_size, s, "zhang"),
+            _core_alone(cores["rational"], sample, image_size, s, "rational"), plain, cored]
+    scores = [score for _, score in fits]
+    k = next(i for i, score in enumerate(scores) if score <= min(scores) * (1 + GCV_TOLERANCE))
+    core, with_field, label = CANDIDATES[k]
+    chosen = fits[k][0]
+    if sample is not data:
+        if with_field:
+            chosen = _fit_field(data, image_size, s, core, _scaled(progress, share, 1.0))[0]
         else:
-            chosen = _fit_field(data, image_size, s, "rational" if better else "none", _scaled(progress, share, 1.0))[0]
-        reason = (f"GCV of the field: {plain_score:.4f} px² without a core, {cored_score:.4f} px² over the rational "
-                  f"core; a core is kept only if it is more than {100 * GCV_TOLERANCE:.0f} % lower"
-                  + ("" if sample is data else f" (decided on {sample.n_views} of the {data.n_views} views)"))
-    chosen.diagnostics["core_choice"] = reason
+            chosen = _core_alone(fit_core(data, image_size, core, _scaled(progress, share, 1.0)), data, image_size, s, core)[0]
+    chosen.diagnostics["core_choice"] = (
+        f"{label}: GCV of the corners "
+        + ", ".join(f"{score:.4f} px² for the {what}" for (_, _, what), score in zip(CANDIDATES, scores))
+        + f"; the simplest within {100 * GCV_TOLERANCE:.0f} % of the lowest is kept"
+        + ("" if sample is data else f" (decided on {sample.n_views} of the {data.n_views} views)"))
+    chosen.diagnostics["core_candidates"] = [{"model": what, "gcv": score} for (_, _, what), score in zip(CANDIDATES, scores)]
     return chosen
+
+
+def _sample_weights(samples: np.ndarray, response: np.ndarray, s: BSplineSettings) -> np.ndarray:
+    """(N, 2) per-axis sample weights (``s.weighting``; the paper's local std)."""
+    ks = s.knot_settings((10, 10))
+    return np.column_stack([knots.sample_weights(samples[:, a], response[:, a], s.weighting, ks) for a in range(2)])
+
+
+def core_alone_score(fit: Fit, data: Data, s: BSplineSettings) -> float:
+    """A parametric fit's GCV score as a field fit's is computed, with no
+    field: the weighted mean squared residual, summed over both axes (px²)."""
+    used = ~fit.excluded
+    pc = camera.transform(fit.result.poses, data.view_index[used], data.object_points[used])
+    samples = fit.result.model.project(pc)
+    response = data.image_points[used] - samples
+    w = _sample_weights(samples, response, s)
+    return float(np.sum(np.mean(w / w.mean(axis=0) * response**2, axis=0)))
+
+
+def _core_alone(fit: Fit, data: Data, image_size, s: BSplineSettings, core: str) -> tuple[Fit, float]:
+    """A parametric fit as the B-spline method's result: a hybrid whose field
+    is zero and held (one interval over the image), the core as fitted; and
+    its score."""
+    model = fit.result.model
+    used = ~fit.excluded
+    pc = camera.transform(fit.result.poses, data.view_index[used], data.object_points[used])
+    u0, u1, v0, v1 = _padded_box(np.vstack([_border(image_size), model.project(pc)]))
+    field = BSplineField.zeros(clamped_knots([u0, u1]), clamped_knots([v0, v1]))
+    gauge_point = (float(model.intrinsics[2]), float(model.intrinsics[3]))
+    hybrid = HybridModel(model, field, s.lambda_reg, 1.0, gauge_point, field_held=True)
+    settings = dataclasses.asdict(s)
+    settings.update(hybrid.settings_json())
+    settings.update(core_used=core, intervals_used=[1, 1])
+    score = core_alone_score(fit, data, s)
+    return Fit(dataclasses.replace(fit.result, model=hybrid, jac=None), fit.excluded, fit.excluded_reason, settings,
+               {**fit.diagnostics, "gcv": score, "smoothing_curve": []}), score
 
 
 def _scaled(progress: Progress, lo: float, hi: float) -> Progress:
     return lambda stage, fraction: progress(stage, lo + (hi - lo) * fraction)
 
 
-def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: Progress) -> tuple[Fit, float]:
+def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: Progress,
+               core_fit: Fit | None = None) -> tuple[Fit, float]:
     """One fit with this core ("none": the paper's model); also its GCV score
     (px²) at the solution, which compares fits of the same corners."""
     progress("initialise", 0.0)
@@ -376,17 +437,13 @@ def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: 
         problem, start, poses, ok, reason = ideal_field_problem(init, data, image_size, s)
         init_info = {"focal_source": init.focal_source, "model": "kannala-brandt (4)", "rmse": init.rmse}
     else:
-        problem, start, poses, ok, reason, core_name = core_field_problem(data, image_size, s, core, progress)
-        init_info = {"model": f"{core_name} core, fitted alone first"}
+        problem, start, poses, ok, reason = core_field_problem(data, image_size, s, core, progress, core_fit)
+        init_info = {"model": f"{core} core, fitted alone first"}
     sub = Data(data.object_points[ok], data.image_points[ok], data.view_index[ok], data.n_views)
-
-    def weights_of(smp, rsp):
-        ks = s.knot_settings((10, 10))
-        return np.column_stack([knots.sample_weights(smp[:, a], rsp[:, a], s.weighting, ks) for a in range(2)])
 
     progress("knots", 0.1)
     samples, response = problem.samples(start, poses, sub)
-    weights = weights_of(samples, response)
+    weights = _sample_weights(samples, response, s)
     auto = AUTO in (s.intervals, s.bandwidth_factor, s.lambda_smooth)
     m = (10, 10) if s.intervals == AUTO else s.intervals
     lam = 1.0 if s.lambda_smooth == AUTO else float(s.lambda_smooth)
@@ -405,7 +462,7 @@ def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: 
         first = levenberg_marquardt(model, poses, sub, SolveSettings(min(s.max_iterations, 50), 1e-4))
         progress("knots", 0.45)
         samples, response = problem.samples(first.model, first.poses, sub)
-        weights = weights_of(samples, response)
+        weights = _sample_weights(samples, response, s)
         m, factor, lam, curve = _choose_smoothing(problem, samples, response, weights, s)
         breaks = knots.breaks_for(samples, weights, problem.domain, s.knot_settings(m, factor), problem.footprint)
         progress("control points", 0.5)
@@ -441,11 +498,11 @@ def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: 
     settings["bandwidth_factor_used"] = factor
     settings["knot_breaks_u"] = breaks[0].tolist()
     settings["knot_breaks_v"] = breaks[1].tolist()
-    settings["core_used"] = "none" if core == "none" else res.model.core.kind
+    settings["core_used"] = core
     # The score at the solution, with the samples' weights recomputed: a
     # corner may have crossed the pinhole's reach during the fit.
     final_samples, final_response = problem.samples(res.model, res.poses, sub)
-    final_weights = weights_of(final_samples, final_response)
+    final_weights = _sample_weights(final_samples, final_response, s)
     b = res.model.field.design(final_samples).matrix(res.model.field.n_controls)
     score = gcv_curve(b, final_weights / final_weights.mean(axis=0), res.model.field.bending(),
                       gauge_rows(res.model.field, problem.gauge_point) * GAUGE_WEIGHT,

@@ -46,6 +46,13 @@ class CameraModel(ABC):
         """Extra residual rows linear in the parameters, ``(r, J)``, or None."""
         return None
 
+    def restored(self, settings: dict[str, Any]) -> "CameraModel":
+        """This model with what its JSON ``distortion`` leaves out but the
+        calibration's ``settings`` record (regularisers, gauge, held parts):
+        what a covariance needs to be the fit's own. Parametric models need
+        nothing."""
+        return self
+
     def free_mask(self) -> np.ndarray | None:
         """(n_params,) bool: the parameters a fit of this model moves (None: all).
         Models whose parameters trade off along a flat valley hold some of

@@ -71,6 +71,22 @@ def field_prior_rows(field: BSplineField, lambda_reg: float, lambda_smooth: floa
     return sp.vstack(rows).tocsr()
 
 
+def recorded_regularisation(settings: dict[str, Any], defaults: tuple[float, float]):
+    """(λ_reg, λ_smooth, gauge point or None) as a calibration's ``settings``
+    record them; ``defaults`` where they are missing or not numbers."""
+    def finite(value) -> bool:
+        return isinstance(value, (int, float)) and not isinstance(value, bool) and bool(np.isfinite(value))
+
+    def weight(key, default) -> float:
+        value = settings.get(key)
+        return float(value) if finite(value) and value >= 0 else default
+
+    gauge = settings.get("gauge")
+    point = gauge.get("point") if isinstance(gauge, dict) else None
+    point = (float(point[0]), float(point[1])) if isinstance(point, list) and len(point) == 2 and all(map(finite, point)) else None
+    return weight("lambda_reg", defaults[0]), weight("lambda_smooth", defaults[1]), point
+
+
 class BSplineModel(CameraModel):
     kind = "bspline"
 
@@ -151,6 +167,12 @@ class BSplineModel(CameraModel):
 
     def gauge_rows(self) -> sp.csr_matrix:
         return gauge_rows(self.field, self.gauge_point)
+
+    def restored(self, settings: dict[str, Any]) -> "BSplineModel":
+        # P₀ (the initial camera's field) is not recorded: the prior rows, and
+        # so the covariance, do not depend on it.
+        lambda_reg, lambda_smooth, gauge_point = recorded_regularisation(settings, (self.lambda_reg, self.lambda_smooth))
+        return BSplineModel(self.intrinsics, self.field, self.base, lambda_reg, lambda_smooth, gauge_point)
 
     # ---- JSON ------------------------------------------------------------------
     def distortion_json(self) -> dict[str, Any]:

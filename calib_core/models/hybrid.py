@@ -11,6 +11,10 @@ so its domain is essentially the image rectangle, whatever the field of view.
 Parameters: ``[core parameters, control_x (flat), control_y (flat)]``.
 Gauge: as for the pure spline, the field's value and gradient vanish at a
 fixed pixel (the initial principal point), so the core keeps the affine part.
+
+``field_held``: the field is zero and not fitted, the core is (all of it):
+what the B-spline method returns when the corners give the field nothing to
+model (``methods/bspline.py``, core choice).
 """
 from __future__ import annotations
 
@@ -22,20 +26,22 @@ import scipy.sparse as sp
 from ..bspline import BSplineField
 from ..errors import FormatError
 from .base import CameraModel
-from .bspline import GAUGE_WEIGHT, field_prior_rows
+from .bspline import GAUGE_WEIGHT, field_prior_rows, recorded_regularisation
 
 
 class HybridModel(CameraModel):
     kind = "hybrid"
 
     def __init__(self, core: CameraModel, field: BSplineField, lambda_reg: float = 1e-3,
-                 lambda_smooth: float = 1.0, gauge_point: tuple[float, float] | None = None):
+                 lambda_smooth: float = 1.0, gauge_point: tuple[float, float] | None = None,
+                 field_held: bool = False):
         self.core = core
         self.field = field
         self.base = core.base
         self.lambda_reg = float(lambda_reg)
         self.lambda_smooth = float(lambda_smooth)
         self.gauge_point = gauge_point
+        self.field_held = bool(field_held)
         self._prior = None
 
     @property
@@ -57,7 +63,10 @@ class HybridModel(CameraModel):
         core's denominators then bend wildly outside the corners (measured:
         hold-out errors 1.5-2x larger at the image corners, 3-10x more iterations)."""
         free = np.ones(self.n_params, dtype=bool)
-        free[4 : self.core.n_params] = False
+        if self.field_held:
+            free[self.core.n_params :] = False
+        else:
+            free[4 : self.core.n_params] = False
         return free
 
     def with_params(self, x: np.ndarray) -> "HybridModel":
@@ -108,7 +117,13 @@ class HybridModel(CameraModel):
             "lambda_smooth": self.lambda_smooth,
             "gauge": {"type": "field value and gradient zero at a fixed pixel",
                       "point": list(self.gauge_point) if self.gauge_point else None},
+            "field_held": self.field_held,
         }
+
+    def restored(self, settings: dict[str, Any]) -> "HybridModel":
+        lambda_reg, lambda_smooth, gauge_point = recorded_regularisation(settings, (self.lambda_reg, self.lambda_smooth))
+        return HybridModel(self.core, self.field, lambda_reg, lambda_smooth, gauge_point,
+                           settings.get("field_held") is True)
 
     @classmethod
     def from_json(cls, intrinsics, distortion: dict[str, Any], base: str) -> "HybridModel":

@@ -182,8 +182,8 @@ def freecal_bspline(train, test) -> dict:
     return {"seconds": seconds, "train_rmse": cal.metrics["rmse"], "train_rmse_axis": cal.metrics["rmse_axis"],
             "test_rmse": metrics.rmse(r), "test_rmse_axis": metrics.rmse_axis(r),
             "outliers": cal.diagnostics["excluded_points"]["outliers"],
-            "model": f"{st.get('base', 'pinhole')} base, core {st.get('core_used')}, "
-                     f"{'x'.join(map(str, st.get('intervals_used', [])))} intervals"}
+            "model": f"{st.get('base', 'pinhole')} base, " + (f"{st.get('core_used')} alone" if st.get("field_held") else
+                     f"core {st.get('core_used')}, {'x'.join(map(str, st.get('intervals_used', [])))} intervals")}
 
 
 def mrcal_side_by_side(kinds, holdout_every: int, real: str, python: str) -> dict:

@@ -113,7 +113,10 @@ def test_upload_watch_review_download_and_3d(browser, service, shots, tmp_path):
     rmse_cell = page.text_content("#metrics-overall tbody td")
     assert rmse_cell.endswith(" px") and 0 < float(rmse_cell.split()[0]) < 1.5
     assert page.locator("#metrics-views tbody tr").count() >= len(images) - 2
-    # the B-spline's knot grid was chosen from the data: the GCV curve is shown, one row chosen
+    # the model (cores alone, the paper's field, a field over a core) and the B-spline's knot grid
+    # were chosen from the data: both GCV tables are shown, one row chosen in each
+    assert page.locator("#metrics-model-choice tbody tr").count() == 4
+    assert page.locator("#metrics-model-choice tbody tr.best").count() == 1
     assert page.locator("#metrics-smoothing tbody tr").count() >= 2
     assert page.locator("#metrics-smoothing tbody tr.best").count() == 1
     # the calibration used: Table 7 for raw and rectified boards, a rectified photo, the maps

@@ -10,6 +10,7 @@ from pathlib import Path
 from calib_core import Observations, calibrate
 from calib_core.detect import IMAGE_SUFFIXES
 from calib_core.errors import SettingsError
+from calib_core.methods.bspline import GCV_TOLERANCE
 
 from .detect import BOARD_HELP, detect_with_report
 from .output import StageProgress, print_json, table
@@ -140,6 +141,13 @@ def print_summary(cal) -> None:
     m, d = cal.metrics, cal.diagnostics
     fx, fy, cx, cy, s = cal.model.intrinsics
     print(f"method {cal.method}: fx={fx:.3f} fy={fy:.3f} cx={cx:.3f} cy={cy:.3f} skew={s:.4f} (pixels)")
+    candidates = d.get("core_candidates")
+    if candidates:
+        print(f"model chosen by generalised cross-validation of the corners (the simplest within "
+              f"{100 * GCV_TOLERANCE:.0f} % of the lowest score):")
+        table(["model", "GCV score [px^2]", "chosen"], [(c["model"], c["gcv"], "*" if c["chosen"] else "") for c in candidates])
+    elif "core_choice" in d:
+        print(f"model: {d['core_choice']}")
     if "design" in d:
         g = d["design"]
         print(f"knot intervals {g['intervals'][0]} x {g['intervals'][1]}, design rank {g['rank']}/{g['n_controls']}, "

@@ -383,7 +383,8 @@ def _choose_model(data: Data, image_size, s: BSplineSettings, progress: Progress
         + ", ".join(f"{score:.4f} px² for the {what}" for (_, _, what), score in zip(CANDIDATES, scores))
         + f"; the simplest within {100 * GCV_TOLERANCE:.0f} % of the lowest is kept"
         + ("" if sample is data else f" (decided on {sample.n_views} of the {data.n_views} views)"))
-    chosen.diagnostics["core_candidates"] = [{"model": what, "gcv": score} for (_, _, what), score in zip(CANDIDATES, scores)]
+    chosen.diagnostics["core_candidates"] = [{"model": what, "gcv": score, "chosen": i == k}
+                                             for i, ((_, _, what), score) in enumerate(zip(CANDIDATES, scores))]
     return chosen
 
 

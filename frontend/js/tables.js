@@ -40,6 +40,20 @@ export function viewsTable(views, title) {
   return el("div", { class: "table-wrap scroll-y" }, table);
 }
 
+/** The B-spline method's model choice (core="auto"): GCV score per candidate model, the simplest close to the lowest kept. */
+export function modelChoiceTable(calibration) {
+  const candidates = (calibration.diagnostics || {}).core_candidates || [];
+  if (!candidates.length) return "";
+  const table = el("table", { id: "metrics-model-choice" },
+    el("caption", {}, "Model chosen from the data (generalised cross-validation of the corners)"),
+    el("thead", {}, el("tr", {}, ["model", "GCV score [px²]", ""].map((h) => el("th", { scope: "col" }, h)))),
+    el("tbody", {}, candidates.map((c) => el("tr", { class: c.chosen ? "best" : "" },
+      el("th", { scope: "row" }, c.model), el("td", {}, num(c.gcv, 4)), el("td", {}, c.chosen ? "chosen" : "")))));
+  const note = el("p", { class: "muted" }, "Lower predicts the corners better; the simplest model within 2 % of the " +
+    "lowest score is kept. A core alone means the field had nothing to add: it is zero and held.");
+  return el("div", { class: "table-wrap" }, table, note);
+}
+
 /** The B-spline's knot-grid and bandwidth choice: GCV score per candidate (lower predicts corners better). */
 export function smoothingTable(calibration) {
   const curve = (calibration.diagnostics || {}).smoothing_curve || [];

@@ -193,7 +193,11 @@ def _verdict(results: dict[str, dict], cv_residuals: dict) -> tuple[str | None, 
     if not ok:
         return None, {"reason": "every method failed on these corners"}
     key = next(k for k in ("cv_validation_rmse", "holdout_rmse", "rmse") if all(k in r for r in ok.values()))
-    best = min(ok, key=lambda n: ok[n][key])
+    # Ties go to the simpler method (DEFAULT_METHODS lists them simplest
+    # first): the B-spline method returns zhang's very calibration when the
+    # lens is OpenCV's own, and the verdict must then name the textbook model.
+    simplicity = {n: i for i, n in enumerate(DEFAULT_METHODS)}
+    best = min(ok, key=lambda n: (ok[n][key], simplicity.get(n, len(simplicity))))
     detail: dict[str, Any] = {"by": key, "value": ok[best][key]}
     if best in cv_residuals:
         r, obj, view = cv_residuals[best]

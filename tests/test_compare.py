@@ -72,3 +72,15 @@ def test_cli_prints_one_json_object(tmp_path, small, capsys):
     assert cli(["compare", str(path), "--methods", "zhang", "--splits", "3", "-q"]) == 0
     text = capsys.readouterr().out
     assert "Verdict: zhang" in text and "Cross-validation" in text
+
+
+def test_on_opencvs_own_lens_the_bspline_method_is_zhang_and_the_verdict_names_zhang(small):
+    """The radial lens is OpenCV's model: a field can only fit noise, so the
+    B-spline method keeps that model alone; tied with zhang, below TPS (which
+    adds a smoothed field to it), and the tie goes to the textbook model
+    whatever order the methods were asked in."""
+    result = compare(small.train, ["bspline", "tps", "zhang"], splits=3)
+    cv = {m: r["cv_validation_rmse"] for m, r in result["methods"].items()}
+    assert cv["bspline"] == pytest.approx(cv["zhang"], rel=1e-9)
+    assert cv["bspline"] < cv["tps"]
+    assert result["verdict"] == "zhang"

@@ -123,3 +123,25 @@ def test_too_few_views_is_a_clear_error():
 def test_bad_settings_are_named(settings, message):
     with pytest.raises(SettingsError, match=message):
         calibrate(synthetic("radial").train, "bspline", **settings)
+
+
+def test_a_core_that_cannot_fit_the_corners_leaves_the_others_in_the_running(monkeypatch):
+    """A lens too wide for OpenCV's 5 coefficients (here: made to fail) must not
+    fail the B-spline method: that candidate drops out, the others compete."""
+    import json
+
+    import calib_core.methods.bspline as bspline_method
+
+    real = bspline_method.fit_opencv
+
+    def five_coefficients_diverge(data, image_size, s, progress):
+        if s.n_coefficients == 5:
+            raise DataError("the OpenCV model diverged on these corners")
+        return real(data, image_size, s, progress)
+
+    monkeypatch.setattr(bspline_method, "fit_opencv", five_coefficients_diverge)
+    cal = calibrate(synthetic("radial").train, "bspline")
+    candidates = cal.diagnostics["core_candidates"]
+    assert candidates[0]["gcv"] is None and not candidates[0]["chosen"]
+    assert sum(c["chosen"] for c in candidates) == 1 and cal.settings["core_used"] == "rational"
+    json.dumps(cal.to_json(), allow_nan=False)

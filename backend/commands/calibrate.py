@@ -145,7 +145,9 @@ def print_summary(cal) -> None:
     if candidates:
         print(f"model chosen by generalised cross-validation of the corners (the simplest within "
               f"{100 * GCV_TOLERANCE:.0f} % of the lowest score):")
-        table(["model", "GCV score [px^2]", "chosen"], [(c["model"], c["gcv"], "*" if c["chosen"] else "") for c in candidates])
+        table(["model", "GCV score [px^2]", "chosen"],
+              [(c["model"], "cannot fit these corners" if c["gcv"] is None else c["gcv"], "*" if c["chosen"] else "")
+               for c in candidates])
     elif "core_choice" in d:
         print(f"model: {d['core_choice']}")
     if "design" in d:

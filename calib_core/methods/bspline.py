@@ -364,12 +364,15 @@ def _choose_model(data: Data, image_size, s: BSplineSettings, progress: Progress
     and only the chosen model is fitted to all."""
     sample = data if data.n_views <= DECISION_VIEWS else spread_views(data, DECISION_VIEWS)
     share = 1.0 if sample is data else 0.5
-    cores = {core: fit_core(sample, image_size, core, _scaled(progress, 0.0, 0.1 * share)) for core in ("zhang", "rational")}
+    cores = {core: _try(fit_core, sample, image_size, core, _scaled(progress, 0.0, 0.1 * share)) for core in ("zhang", "rational")}
     plain = _fit_field(sample, image_size, s, "none", _scaled(progress, 0.1 * share, 0.55 * share))
-    cored = _fit_field(sample, image_size, s, "rational", _scaled(progress, 0.55 * share, share), cores["rational"])
-    fits = [_core_alone(cores["zhang"], sample, image_size, s, "zhang"),
-            _core_alone(cores["rational"], sample, image_size, s, "rational"), plain, cored]
-    scores = [score for _, score in fits]
+    # A core that cannot fit these corners (a lens too wide for it) is out of the running.
+    rational = cores["rational"]
+    fits = [None if cores["zhang"] is None else _core_alone(cores["zhang"], sample, image_size, s, "zhang"),
+            None if rational is None else _core_alone(rational, sample, image_size, s, "rational"), plain,
+            None if rational is None else _fit_field(sample, image_size, s, "rational",
+                                                     _scaled(progress, 0.55 * share, share), rational)]
+    scores = [np.inf if fit is None else fit[1] for fit in fits]
     k = next(i for i, score in enumerate(scores) if score <= min(scores) * (1 + GCV_TOLERANCE))
     core, with_field, label = CANDIDATES[k]
     chosen = fits[k][0]
@@ -380,12 +383,21 @@ def _choose_model(data: Data, image_size, s: BSplineSettings, progress: Progress
             chosen = _core_alone(fit_core(data, image_size, core, _scaled(progress, share, 1.0)), data, image_size, s, core)[0]
     chosen.diagnostics["core_choice"] = (
         f"{label}: GCV of the corners "
-        + ", ".join(f"{score:.4f} px² for the {what}" for (_, _, what), score in zip(CANDIDATES, scores))
+        + ", ".join((f"{score:.4f} px²" if np.isfinite(score) else "no fit") + f" for the {what}"
+                    for (_, _, what), score in zip(CANDIDATES, scores))
         + f"; the simplest within {100 * GCV_TOLERANCE:.0f} % of the lowest is kept"
         + ("" if sample is data else f" (decided on {sample.n_views} of the {data.n_views} views)"))
-    chosen.diagnostics["core_candidates"] = [{"model": what, "gcv": score, "chosen": i == k}
+    chosen.diagnostics["core_candidates"] = [{"model": what, "gcv": score if np.isfinite(score) else None, "chosen": i == k}
                                              for i, ((_, _, what), score) in enumerate(zip(CANDIDATES, scores))]
     return chosen
+
+
+def _try(fit_fn, *args):
+    """``fit_fn(*args)``, or None if the model cannot fit these corners."""
+    try:
+        return fit_fn(*args)
+    except DataError:
+        return None
 
 
 def _sample_weights(samples: np.ndarray, response: np.ndarray, s: BSplineSettings) -> np.ndarray:

@@ -48,7 +48,8 @@ export function modelChoiceTable(calibration) {
     el("caption", {}, "Model chosen from the data (generalised cross-validation of the corners)"),
     el("thead", {}, el("tr", {}, ["model", "GCV score [px²]", ""].map((h) => el("th", { scope: "col" }, h)))),
     el("tbody", {}, candidates.map((c) => el("tr", { class: c.chosen ? "best" : "" },
-      el("th", { scope: "row" }, c.model), el("td", {}, num(c.gcv, 4)), el("td", {}, c.chosen ? "chosen" : "")))));
+      el("th", { scope: "row" }, c.model), el("td", {}, c.gcv == null ? "cannot fit these corners" : num(c.gcv, 4)),
+      el("td", {}, c.chosen ? "chosen" : "")))));
   const note = el("p", { class: "muted" }, "Lower predicts the corners better; the simplest model within 2 % of the " +
     "lowest score is kept. A core alone means the field had nothing to add: it is zero and held.");
   return el("div", { class: "table-wrap" }, table, note);

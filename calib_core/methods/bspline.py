@@ -240,7 +240,7 @@ def fit_core(data: Data, image_size, core: str, progress: Progress) -> Fit:
 def core_field_problem(data: Data, image_size, s: BSplineSettings, core: str, progress: Progress,
                        core_fit: Fit | None = None):
     fit = core_fit or fit_core(data, image_size, core, progress)
-    core, core_poses, ok, reason = fit.result.model, fit.result.poses, ~fit.excluded, fit.excluded_reason
+    fitted, ok = fit.result.model, ~fit.excluded
 
     def samples(model, poses, sub):
         core_model = model.core if isinstance(model, HybridModel) else model
@@ -252,11 +252,11 @@ def core_field_problem(data: Data, image_size, s: BSplineSettings, core: str, pr
         core_model = start.core if isinstance(start, HybridModel) else start
         return HybridModel(core_model, field, s.lambda_reg, lambda_smooth, gauge_point)
 
-    gauge_point = (float(core.intrinsics[2]), float(core.intrinsics[3]))
-    pc = camera.transform(core_poses, data.view_index[ok], data.object_points[ok])
-    domain = _padded_box(np.vstack([_border(image_size), core.project(pc)]))
+    gauge_point = (float(fitted.intrinsics[2]), float(fitted.intrinsics[3]))
+    pc = camera.transform(fit.result.poses, data.view_index[ok], data.object_points[ok])
+    domain = _padded_box(np.vstack([_border(image_size), fitted.project(pc)]))
     problem = FieldProblem(domain, _border(image_size), gauge_point, lambda field: np.zeros((field.n_u, field.n_v, 2)), samples, make)
-    return problem, core, core_poses, ok, reason
+    return problem, fitted, fit.result.poses, ok, fit.excluded_reason
 
 
 # ---- shared steps ---------------------------------------------------------------------

@@ -45,7 +45,19 @@ def test_parametric_calibration_exports_exactly():
     u, v, rays, ok = sample_grid(cal)
     got = cv_project(doc["camera_matrix"], doc["distortion_coefficients"])(rays[ok])
     assert np.abs(got - cal.project(rays[ok])).max() < 1e-6
-    assert opencv_yaml(cal_of("radial", "bspline")) is None  # not parametric: use a lean fit
+    assert opencv_yaml(cal_of("asymmetric", "bspline")) is None  # not parametric: use a lean fit
+
+
+def test_a_bspline_result_without_a_field_exports_its_core_exactly():
+    """On OpenCV's own lens the B-spline method keeps OpenCV's model alone (a
+    hybrid whose field is zero and held): its YAML is that model, exactly."""
+    cal = cal_of("radial", "bspline")
+    assert cal.model.kind == "hybrid" and cal.model.field_held
+    doc = read_opencv_yaml(opencv_yaml(cal))
+    assert doc["distortion_model"] == "opencv" and len(doc["distortion_coefficients"]) == 5
+    u, v, rays, ok = sample_grid(cal)
+    got = cv_project(doc["camera_matrix"], doc["distortion_coefficients"])(rays[ok])
+    assert np.abs(got - cal.project(rays[ok])).max() < 1e-6
 
 
 @pytest.mark.parametrize("name", ["opencv8", "kb4"])

@@ -7,7 +7,7 @@ import numpy as np
 
 from calib_core import Calibration, Observations
 from calib_core.errors import SettingsError
-from calib_core.exports import LEAN_MODELS, cameramodel, exact_name, fit_lean, lean_yaml, ros_yaml
+from calib_core.exports import LEAN_MODELS, cameramodel, exact_name, fit_lean, lean_yaml, parametric_part, ros_yaml
 from calib_core.exports.lean_fit import save_error_map
 
 FORMATS = ("opencv", "ros", "mrcal")
@@ -33,6 +33,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     cal = Calibration.load(args.calibration)
+    cal = parametric_part(cal) or cal  # a hybrid with a held zero field is its core, exactly
     fmt, model = (args.to, args.model) if args.to in FORMATS else ("opencv", args.to)
     if args.to not in FORMATS and args.model != "auto" and args.model != args.to:
         raise SettingsError(f"--to {args.to} already names the model; drop --model {args.model}")

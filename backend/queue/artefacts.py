@@ -16,12 +16,12 @@ import numpy as np
 
 from calib_core import Calibration, Observations
 from calib_core.calibration import json_safe
+from calib_core.exports import opencv_yaml
 
 from ..app import storage
 
 HEATMAP_CELLS = (16, 12)   # columns, rows over the image
 FIELD_SAMPLES = (17, 13)   # distortion field sample grid (u, v)
-PARAMETRIC = ("opencv", "fisheye")
 
 
 def write_calibration(out: Path, cal: Calibration, obs: Observations) -> list[str]:
@@ -144,28 +144,6 @@ def knot_grid(cal: Calibration) -> dict[str, Any] | None:
             "knots_u": ku, "knots_v": kv,
             "breaks_u": sorted(set(ku[3:-3])), "breaks_v": sorted(set(kv[3:-3])),
             "coordinates": "ideal pixels" if dist["type"] == "bspline" else "pixels of the parametric core"}
-
-
-def opencv_yaml(cal: Calibration) -> str | None:
-    """The OpenCV calibration sample's cv2.FileStorage layout, for parametric models only."""
-    import cv2
-
-    doc = cal.to_json()
-    dist = doc["distortion"]
-    if dist.get("type") not in PARAMETRIC:
-        return None
-    k = doc["intrinsics"]
-    K = np.array([[k["fx"], k["skew"], k["cx"]], [0, k["fy"], k["cy"]], [0, 0, 1]], dtype=np.float64)
-    fs = cv2.FileStorage("calibration.yaml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
-    fs.write("image_width", int(cal.image_size[0]))
-    fs.write("image_height", int(cal.image_size[1]))
-    fs.write("distortion_model", dist["type"])
-    fs.write("camera_matrix", K)
-    fs.write("distortion_coefficients", np.asarray(dist["coefficients"], dtype=np.float64).reshape(1, -1))
-    rmse = cal.metrics.get("rmse")
-    if rmse is not None and math.isfinite(rmse):
-        fs.write("avg_reprojection_error", float(rmse))
-    return fs.releaseAndGetString()
 
 
 def comparison_rows(result: dict[str, Any]) -> list[dict[str, Any]]:

@@ -11,6 +11,7 @@ error is ``|lean(ray) − calibration(ray)|`` in pixels at each sample.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -54,6 +55,17 @@ class LeanFit:
     def summary(self) -> dict[str, Any]:
         return {"model": self.name, "fit_rms_px": self.rms, "fit_max_px": self.max, "fit_p99_px": self.p99,
                 "n_samples": self.n_samples, "exact": self.exact}
+
+
+def parametric_part(cal: Calibration) -> Calibration | None:
+    """The calibration as a parametric one, exactly, or None: itself if its model
+    is ``opencv``/``fisheye``, its core if it is a hybrid whose field is held at
+    zero (the B-spline method's choice on a lens a textbook model fits)."""
+    if cal.model.kind in ("opencv", "fisheye"):
+        return cal
+    if cal.model.kind == "hybrid" and cal.model.field_held:
+        return dataclasses.replace(cal, model=cal.model.core)
+    return None
 
 
 def exact_name(cal: Calibration) -> str | None:

@@ -3,7 +3,7 @@
 (1×n), ``distortion_model`` (``opencv`` → ``cv2.projectPoints``, ``fisheye`` →
 ``cv2.fisheye.projectPoints``) and, when known, ``avg_reprojection_error``.
 
-``opencv_yaml(cal)`` is the same document the service's job artefacts write
+``opencv_yaml(cal)`` is the document the service's job artefacts write
 (``backend/queue/artefacts.py``), for parametric calibrations as they are;
 ``lean_yaml(fit)`` writes a lean-model fit of any calibration and records its
 fit error, so a reader knows what was lost.
@@ -15,9 +15,7 @@ import math
 import numpy as np
 
 from ..calibration import Calibration
-from .lean_fit import LeanFit
-
-PARAMETRIC = ("opencv", "fisheye")
+from .lean_fit import LeanFit, parametric_part
 
 
 def _storage_string(cal: Calibration, extra: dict[str, float | str] | None = None) -> str:
@@ -41,10 +39,9 @@ def _storage_string(cal: Calibration, extra: dict[str, float | str] | None = Non
 
 
 def opencv_yaml(cal: Calibration) -> str | None:
-    """The FileStorage YAML of a parametric calibration (``opencv``/``fisheye``), else None."""
-    if cal.model.kind not in PARAMETRIC:
-        return None
-    return _storage_string(cal)
+    """The FileStorage YAML of a parametric calibration (see ``parametric_part``), else None."""
+    parametric = parametric_part(cal)
+    return None if parametric is None else _storage_string(parametric)
 
 
 def lean_yaml(fit: LeanFit, source: Calibration) -> str:

@@ -364,7 +364,8 @@ def _choose_model(data: Data, image_size, s: BSplineSettings, progress: Progress
     and only the chosen model is fitted to all."""
     sample = data if data.n_views <= DECISION_VIEWS else spread_views(data, DECISION_VIEWS)
     share = 1.0 if sample is data else 0.5
-    cores = {core: _try(fit_core, sample, image_size, core, _scaled(progress, 0.0, 0.1 * share)) for core in ("zhang", "rational")}
+    cores = {core: _try(fit_core, sample, image_size, core, _scaled(progress, lo * share, (lo + 0.05) * share))
+             for core, lo in (("zhang", 0.0), ("rational", 0.05))}
     plain = _fit_field(sample, image_size, s, "none", _scaled(progress, 0.1 * share, 0.55 * share))
     # A core that cannot fit these corners (a lens too wide for it) is out of the running.
     rational = cores["rational"]

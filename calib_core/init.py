@@ -209,5 +209,38 @@ def _initialise(data: Data, image_size: tuple[int, int], n_coefficients: int) ->
     if poses is None:
         raise DataError("could not initialise a pose for every view; remove views with very few corners")
     res = levenberg_marquardt(model, poses, data, SolveSettings(max_iterations=100))
+    # Corners near the axis barely constrain the higher coefficients: on a narrow
+    # set they can bend the lens back on itself inside the image, and every
+    # use of the camera beyond the corners (the B-spline's prior field, the
+    # image border's rays) then sees a fold. Fewer coefficients, the rest zero.
+    for n in range(n_coefficients - 1, -1, -1):
+        if not folds_inside_image(res.model, res.poses, data, image_size):
+            break
+        k = res.model.coefficients.copy()
+        k[n:] = 0.0
+        free = np.ones(res.model.n_params, dtype=bool)
+        free[4 + n :] = False
+        res = levenberg_marquardt(FisheyeModel(res.model.intrinsics, k), res.poses, data,
+                                  SolveSettings(max_iterations=100, free_params=free))
     rmse = float(np.sqrt(np.mean(np.sum(res.residuals**2, axis=1))))
     return Initial(res.model, res.poses, rmse, source)
+
+
+def folds_inside_image(model: FisheyeModel, poses: np.ndarray, data: Data, image_size) -> bool:
+    """Does the Kannala–Brandt radius θ_d(θ) turn back before the image ends?
+
+    Looked for up to the farthest image corner: as far as the corners' angles
+    reach, and at least to that corner's pinhole angle (a circular fisheye's
+    black corners, which no ray reaches, are not asked for beyond its data)."""
+    fx, fy, cx, cy, _ = model.intrinsics
+    w, h = image_size
+    corners = np.array([[0.0, 0.0], [w - 1.0, 0.0], [0.0, h - 1.0], [w - 1.0, h - 1.0]])
+    reach = np.max(np.hypot((corners[:, 0] - cx) / fx, (corners[:, 1] - cy) / fy))
+    pc = camera.transform(poses, data.view_index, data.object_points)
+    seen = np.max(np.arccos(np.clip(pc[:, 2] / np.linalg.norm(pc, axis=1), -1.0, 1.0)))
+    theta = np.linspace(1e-3, min(np.pi, max(seen, np.arctan(reach))), 2000)
+    poly, dpoly, _ = model._poly(theta**2)
+    radius = theta * poly
+    slope = poly + 2.0 * theta**2 * dpoly  # d(θ p(θ²))/dθ
+    inside = np.cumsum(radius >= reach) == 0  # before θ_d first reaches the farthest corner
+    return bool(np.any(slope[inside] <= 0.0))

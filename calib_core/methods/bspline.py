@@ -397,7 +397,7 @@ def _try(fit_fn, *args):
     """``fit_fn(*args)``, or None if the model cannot fit these corners."""
     try:
         return fit_fn(*args)
-    except DataError:
+    except (DataError, FloatingPointError, np.linalg.LinAlgError):  # diverged, or no finite start
         return None
 
 

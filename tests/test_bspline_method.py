@@ -145,3 +145,16 @@ def test_a_core_that_cannot_fit_the_corners_leaves_the_others_in_the_running(mon
     assert candidates[0]["gcv"] is None and not candidates[0]["chosen"]
     assert sum(c["chosen"] for c in candidates) == 1 and cal.settings["core_used"] == "rational"
     json.dumps(cal.to_json(), allow_nan=False)
+
+
+def test_a_set_too_small_for_a_field_gets_a_core_alone_and_names_why():
+    """110 corners cannot carry a 15 x 15 field (677 unknowns): the default keeps a
+    parametric core; asked for the field alone, the error says what to do."""
+    s = synthetic("radial")
+    obs = Observations(s.train.image_size, [v.subset(np.arange(len(v)) % 6 == 0) for v in s.train.views[:4]],
+                       s.train.board)
+    cal = calibrate(obs, "bspline", knots="uniform", intervals=15)
+    fields = [c for c in cal.diagnostics["core_candidates"] if "field" in c["model"]]
+    assert all(c["gcv"] is None and not c["chosen"] for c in fields) and cal.model.field_held
+    with pytest.raises(DataError, match="equations for .* unknowns: add views, or use fewer knot intervals"):
+        calibrate(obs, "bspline", knots="uniform", intervals=15, core="none")

@@ -364,15 +364,20 @@ def _choose_model(data: Data, image_size, s: BSplineSettings, progress: Progress
     and only the chosen model is fitted to all."""
     sample = data if data.n_views <= DECISION_VIEWS else spread_views(data, DECISION_VIEWS)
     share = 1.0 if sample is data else 0.5
-    cores = {core: _try(fit_core, sample, image_size, core, _scaled(progress, lo * share, (lo + 0.05) * share))
+    # A model that cannot fit these corners (a core too narrow for the lens, a
+    # field with more unknowns than the corners give equations) is out of the
+    # running; only if none can is it an error.
+    errors: list[str] = []
+    cores = {core: _try(errors, fit_core, sample, image_size, core, _scaled(progress, lo * share, (lo + 0.05) * share))
              for core, lo in (("zhang", 0.0), ("rational", 0.05))}
-    plain = _fit_field(sample, image_size, s, "none", _scaled(progress, 0.1 * share, 0.55 * share))
-    # A core that cannot fit these corners (a lens too wide for it) is out of the running.
     rational = cores["rational"]
     fits = [None if cores["zhang"] is None else _core_alone(cores["zhang"], sample, image_size, s, "zhang"),
-            None if rational is None else _core_alone(rational, sample, image_size, s, "rational"), plain,
-            None if rational is None else _fit_field(sample, image_size, s, "rational",
-                                                     _scaled(progress, 0.55 * share, share), rational)]
+            None if rational is None else _core_alone(rational, sample, image_size, s, "rational"),
+            _try(errors, _fit_field, sample, image_size, s, "none", _scaled(progress, 0.1 * share, 0.55 * share)),
+            None if rational is None else _try(errors, _fit_field, sample, image_size, s, "rational",
+                                               _scaled(progress, 0.55 * share, share), rational)]
+    if all(fit is None for fit in fits):
+        raise DataError("no model fits these corners: " + "; ".join(dict.fromkeys(errors)))
     scores = [np.inf if fit is None else fit[1] for fit in fits]
     k = next(i for i, score in enumerate(scores) if score <= min(scores) * (1 + GCV_TOLERANCE))
     core, with_field, label = CANDIDATES[k]
@@ -393,11 +398,13 @@ def _choose_model(data: Data, image_size, s: BSplineSettings, progress: Progress
     return chosen
 
 
-def _try(fit_fn, *args):
-    """``fit_fn(*args)``, or None if the model cannot fit these corners."""
+def _try(errors: list[str], fit_fn, *args):
+    """``fit_fn(*args)``, or None (and why, appended to ``errors``) if the
+    model cannot fit these corners."""
     try:
         return fit_fn(*args)
-    except (DataError, FloatingPointError, np.linalg.LinAlgError):  # diverged, or no finite start
+    except (DataError, FloatingPointError, np.linalg.LinAlgError) as exc:  # too few corners, diverged, no finite start
+        errors.append(str(exc))
         return None
 
 

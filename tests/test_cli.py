@@ -29,3 +29,19 @@ def test_user_errors_exit_2_with_one_line(tmp_path, capsys):
     assert "views" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert main(["calibrate", str(tmp_path / "missing.json")]) == 2
     assert "no such file" in capsys.readouterr().err
+
+
+def test_calibrate_summary_and_demo_say_which_model_was_chosen(tmp_path, capsys):
+    """OpenCV's own lens: the summary's GCV table marks OpenCV's model alone;
+    the demo names the choice per lens, the field on the asymmetric wave."""
+    out = tmp_path / "set"
+    assert main(["synth", "--kind", "radial", "-o", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["calibrate", str(out / "train.json"), "-q"]) == 0
+    printed = capsys.readouterr().out
+    chosen = [line for line in printed.splitlines() if line.rstrip().endswith("*") and "alone" in line]
+    assert len(chosen) == 1 and "OpenCV 5-coefficient model alone" in chosen[0]
+    assert main(["demo"]) == 0
+    rows = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()
+            if line.split() and line.split()[0] in ("radial", "fisheye", "asymmetric")}
+    assert "OpenCV 5-coefficient model alone" in rows["radial"] and "field" in rows["asymmetric"]

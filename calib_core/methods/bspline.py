@@ -435,7 +435,7 @@ def _core_alone(fit: Fit, data: Data, image_size, s: BSplineSettings, core: str)
     u0, u1, v0, v1 = _padded_box(np.vstack([_border(image_size), model.project(pc)]))
     field = BSplineField.zeros(clamped_knots([u0, u1]), clamped_knots([v0, v1]))
     gauge_point = (float(model.intrinsics[2]), float(model.intrinsics[3]))
-    hybrid = HybridModel(model, field, s.lambda_reg, 1.0, gauge_point, field_held=True)
+    hybrid = HybridModel(model, field, 0.0, 0.0, gauge_point, field_held=True)  # no field fitted, nothing to smooth
     settings = dataclasses.asdict(s)
     settings.update(hybrid.settings_json())
     settings.update(core_used=core, intervals_used=[1, 1])

@@ -100,7 +100,7 @@ def test_corners_crossing_the_pinhole_reach_during_the_fit_are_scored():
 
 def test_a_large_set_decides_the_core_on_a_spread_of_views_and_fits_all():
     from calib_core import synth
-    from calib_core.methods.bspline import DECISION_VIEWS
+    from calib_core.methods.bspline_auto import DECISION_VIEWS
 
     s = synth.generate("radial", 0.3, 0, n_views=DECISION_VIEWS + 4)
     cal = calibrate(s.train, "bspline")

@@ -6,7 +6,8 @@ rest (views, outliers, metrics, JSON) the same way for every method.
 """
 from __future__ import annotations
 
-from .bspline import BSplineSettings, fit_bspline
+from .bspline import BSplineSettings
+from .bspline_auto import fit_bspline
 from .fisheye import FisheyeSettings, fit_fisheye
 from .opencv import OpenCVSettings, RationalSettings, fit_opencv
 from .residual_fields import MLSSettings, TPSSettings, fit_mls, fit_tps

@@ -9,7 +9,9 @@ control point.
 ``core="none"`` is the paper's model: the field moves ideal pixels of the base
 projection. With ``core="rational"`` or ``"fisheye"`` the field moves the
 pixels of a jointly fitted OpenCV-rational or Kannala–Brandt camera and is
-regularised towards zero (``models/hybrid.py``).
+regularised towards zero (``models/hybrid.py``). ``core="auto"``, the
+default, chooses among these and the parametric cores alone
+(``bspline_auto.py``); this module is one field fit (``fit_field``).
 
 With ``intervals="auto"`` and ``lambda_smooth="auto"`` (the defaults) a first
 joint fit on a middle-sized grid takes out the initial camera's errors; then
@@ -36,7 +38,7 @@ from ..metrics import design_diagnostics
 from ..models.bspline import GAUGE_WEIGHT, BSplineModel, gauge_rows
 from ..models.hybrid import HybridModel
 from ..smoothing import LAMBDA_GRID, gcv_curve
-from ..solve import Data, SolveSettings, levenberg_marquardt, spread_views
+from ..solve import Data, SolveSettings, levenberg_marquardt
 from .common import Fit, Progress
 from .fisheye import FisheyeSettings, fit_fisheye
 from .opencv import OpenCVSettings, RationalSettings, fit_opencv
@@ -49,8 +51,6 @@ AUTO_INTERVALS = (6, 8, 10, 12, 15)
 # with a time budget the search covers every grid at 1.0 before the others.
 AUTO_BANDWIDTH_FACTORS = (1.0, 1.2, 0.8, 1.5)
 CORES = ("auto", "none", "rational", "fisheye")
-# Above this many views, core="auto" decides on this many (spread over the set).
-DECISION_VIEWS = 20
 # Knot counts within this fraction of the best GCV score count as equally good:
 # the coarsest of them is taken (see _choose_smoothing).
 GCV_TOLERANCE = 0.02
@@ -328,127 +328,13 @@ def _choose_smoothing(problem: FieldProblem, samples, response, weights, s: BSpl
     return m, factor, lam, curve
 
 
-def fit_bspline(data: Data, image_size, s: BSplineSettings, progress: Progress) -> Fit:
-    """The paper's model, or a field over a core; ``core="auto"`` chooses
-    between them and the parametric cores alone (``_choose_model``)."""
-    if s.core != "auto":
-        return _fit_field(data, image_size, s, s.core, progress)[0]
-    init = initialise(data, image_size)
-    _, seen = ideal_samples(init.model, init.poses, data, "pinhole")
-    if not seen.all():
-        # Corners past the pinhole's reach: a lens beyond ~170°, where only the
-        # Kannala–Brandt core represents every corner.
-        chosen = _fit_field(data, image_size, s, "fisheye", progress)[0]
-        chosen.diagnostics["core_choice"] = f"{int((~seen).sum())} corners lie past the pinhole's reach: Kannala-Brandt core"
-        return chosen
-    return _choose_model(data, image_size, s, progress)
-
-
-# core="auto": the candidates, simplest first, as (core, field fitted?, label).
-CANDIDATES = (("zhang", False, "OpenCV 5-coefficient model alone"),
-              ("rational", False, "rational model alone"),
-              ("none", True, "field without a core (the paper's model)"),
-              ("rational", True, "field over the rational core"))
-
-
-def _choose_model(data: Data, image_size, s: BSplineSettings, progress: Progress) -> Fit:
-    """Fit every candidate, score each by GCV of its corners (a core alone
-    has no field: its score is the weighted mean squared residual) and keep
-    the simplest within GCV_TOLERANCE of the lowest. A field is worth its
-    freedom only where it predicts the corners better: over a core that
-    already fits the lens (OpenCV's own model) it can only add noise, and the
-    core alone is returned, as a hybrid whose field is zero and held.
-
-    Whether a core or a field pays is a property of the lens, not of the
-    number of views: on a large set it is decided on DECISION_VIEWS of them,
-    and only the chosen model is fitted to all."""
-    sample = data if data.n_views <= DECISION_VIEWS else spread_views(data, DECISION_VIEWS)
-    share = 1.0 if sample is data else 0.5
-    # A model that cannot fit these corners (a core too narrow for the lens, a
-    # field with more unknowns than the corners give equations) is out of the
-    # running; only if none can is it an error.
-    errors: list[str] = []
-    cores = {core: _try(errors, fit_core, sample, image_size, core, _scaled(progress, lo * share, (lo + 0.05) * share))
-             for core, lo in (("zhang", 0.0), ("rational", 0.05))}
-    rational = cores["rational"]
-    fits = [None if cores["zhang"] is None else _core_alone(cores["zhang"], sample, image_size, s, "zhang"),
-            None if rational is None else _core_alone(rational, sample, image_size, s, "rational"),
-            _try(errors, _fit_field, sample, image_size, s, "none", _scaled(progress, 0.1 * share, 0.55 * share)),
-            None if rational is None else _try(errors, _fit_field, sample, image_size, s, "rational",
-                                               _scaled(progress, 0.55 * share, share), rational)]
-    if all(fit is None for fit in fits):
-        raise DataError("no model fits these corners: " + "; ".join(dict.fromkeys(errors)))
-    scores = [np.inf if fit is None else fit[1] for fit in fits]
-    k = next(i for i, score in enumerate(scores) if score <= min(scores) * (1 + GCV_TOLERANCE))
-    core, with_field, label = CANDIDATES[k]
-    chosen = fits[k][0]
-    if sample is not data:
-        if with_field:
-            chosen = _fit_field(data, image_size, s, core, _scaled(progress, share, 1.0))[0]
-        else:
-            chosen = _core_alone(fit_core(data, image_size, core, _scaled(progress, share, 1.0)), data, image_size, s, core)[0]
-    chosen.diagnostics["core_choice"] = (
-        f"{label}: GCV of the corners "
-        + ", ".join((f"{score:.4f} px²" if np.isfinite(score) else "no fit") + f" for the {what}"
-                    for (_, _, what), score in zip(CANDIDATES, scores))
-        + f"; the simplest within {100 * GCV_TOLERANCE:.0f} % of the lowest is kept"
-        + ("" if sample is data else f" (decided on {sample.n_views} of the {data.n_views} views)"))
-    chosen.diagnostics["core_candidates"] = [{"model": what, "gcv": score if np.isfinite(score) else None, "chosen": i == k}
-                                             for i, ((_, _, what), score) in enumerate(zip(CANDIDATES, scores))]
-    return chosen
-
-
-def _try(errors: list[str], fit_fn, *args):
-    """``fit_fn(*args)``, or None (and why, appended to ``errors``) if the
-    model cannot fit these corners."""
-    try:
-        return fit_fn(*args)
-    except (DataError, FloatingPointError, np.linalg.LinAlgError) as exc:  # too few corners, diverged, no finite start
-        errors.append(str(exc))
-        return None
-
-
-def _sample_weights(samples: np.ndarray, response: np.ndarray, s: BSplineSettings) -> np.ndarray:
+def sample_weights(samples: np.ndarray, response: np.ndarray, s: BSplineSettings) -> np.ndarray:
     """(N, 2) per-axis sample weights (``s.weighting``; the paper's local std)."""
     ks = s.knot_settings((10, 10))
     return np.column_stack([knots.sample_weights(samples[:, a], response[:, a], s.weighting, ks) for a in range(2)])
 
 
-def core_alone_score(fit: Fit, data: Data, s: BSplineSettings) -> float:
-    """A parametric fit's GCV score as a field fit's is computed, with no
-    field: the weighted mean squared residual, summed over both axes (px²)."""
-    used = ~fit.excluded
-    pc = camera.transform(fit.result.poses, data.view_index[used], data.object_points[used])
-    samples = fit.result.model.project(pc)
-    response = data.image_points[used] - samples
-    w = _sample_weights(samples, response, s)
-    return float(np.sum(np.mean(w / w.mean(axis=0) * response**2, axis=0)))
-
-
-def _core_alone(fit: Fit, data: Data, image_size, s: BSplineSettings, core: str) -> tuple[Fit, float]:
-    """A parametric fit as the B-spline method's result: a hybrid whose field
-    is zero and held (one interval over the image), the core as fitted; and
-    its score."""
-    model = fit.result.model
-    used = ~fit.excluded
-    pc = camera.transform(fit.result.poses, data.view_index[used], data.object_points[used])
-    u0, u1, v0, v1 = _padded_box(np.vstack([_border(image_size), model.project(pc)]))
-    field = BSplineField.zeros(clamped_knots([u0, u1]), clamped_knots([v0, v1]))
-    gauge_point = (float(model.intrinsics[2]), float(model.intrinsics[3]))
-    hybrid = HybridModel(model, field, 0.0, 0.0, gauge_point, field_held=True)  # no field fitted, nothing to smooth
-    settings = dataclasses.asdict(s)
-    settings.update(hybrid.settings_json())
-    settings.update(core_used=core, intervals_used=[1, 1])
-    score = core_alone_score(fit, data, s)
-    return Fit(dataclasses.replace(fit.result, model=hybrid, jac=None), fit.excluded, fit.excluded_reason, settings,
-               {**fit.diagnostics, "gcv": score, "smoothing_curve": []}), score
-
-
-def _scaled(progress: Progress, lo: float, hi: float) -> Progress:
-    return lambda stage, fraction: progress(stage, lo + (hi - lo) * fraction)
-
-
-def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: Progress,
+def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: Progress,
                core_fit: Fit | None = None) -> tuple[Fit, float]:
     """One fit with this core ("none": the paper's model); also its GCV score
     (px²) at the solution, which compares fits of the same corners."""
@@ -464,7 +350,7 @@ def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: 
 
     progress("knots", 0.1)
     samples, response = problem.samples(start, poses, sub)
-    weights = _sample_weights(samples, response, s)
+    weights = sample_weights(samples, response, s)
     auto = AUTO in (s.intervals, s.bandwidth_factor, s.lambda_smooth)
     m = (10, 10) if s.intervals == AUTO else s.intervals
     lam = 1.0 if s.lambda_smooth == AUTO else float(s.lambda_smooth)
@@ -483,7 +369,7 @@ def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: 
         first = levenberg_marquardt(model, poses, sub, SolveSettings(min(s.max_iterations, 50), 1e-4))
         progress("knots", 0.45)
         samples, response = problem.samples(first.model, first.poses, sub)
-        weights = _sample_weights(samples, response, s)
+        weights = sample_weights(samples, response, s)
         m, factor, lam, curve = _choose_smoothing(problem, samples, response, weights, s)
         breaks = knots.breaks_for(samples, weights, problem.domain, s.knot_settings(m, factor), problem.footprint)
         progress("control points", 0.5)
@@ -523,7 +409,7 @@ def _fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: 
     # The score at the solution, with the samples' weights recomputed: a
     # corner may have crossed the pinhole's reach during the fit.
     final_samples, final_response = problem.samples(res.model, res.poses, sub)
-    final_weights = _sample_weights(final_samples, final_response, s)
+    final_weights = sample_weights(final_samples, final_response, s)
     b = res.model.field.design(final_samples).matrix(res.model.field.n_controls)
     score = gcv_curve(b, final_weights / final_weights.mean(axis=0), res.model.field.bending(),
                       gauge_rows(res.model.field, problem.gauge_point) * GAUGE_WEIGHT,

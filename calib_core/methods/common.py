@@ -17,6 +17,11 @@ def no_progress(stage: str, fraction: float) -> None:
     pass
 
 
+def scaled(progress: Progress, lo: float, hi: float) -> Progress:
+    """``progress`` for one part of a longer run: fractions mapped onto [lo, hi]."""
+    return lambda stage, fraction: progress(stage, lo + (hi - lo) * fraction)
+
+
 @dataclass
 class Fit:
     """A fitted model and poses, the points it could not use, and what to record."""

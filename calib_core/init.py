@@ -239,8 +239,6 @@ def folds_inside_image(model: FisheyeModel, poses: np.ndarray, data: Data, image
     pc = camera.transform(poses, data.view_index, data.object_points)
     seen = np.max(np.arccos(np.clip(pc[:, 2] / np.linalg.norm(pc, axis=1), -1.0, 1.0)))
     theta = np.linspace(1e-3, min(np.pi, max(seen, np.arctan(reach))), 2000)
-    poly, dpoly, _ = model._poly(theta**2)
-    radius = theta * poly
-    slope = poly + 2.0 * theta**2 * dpoly  # d(θ p(θ²))/dθ
+    radius, slope = model.radial_profile(theta)
     inside = np.cumsum(radius >= reach) == 0  # before θ_d first reaches the farthest corner
     return bool(np.any(slope[inside] <= 0.0))

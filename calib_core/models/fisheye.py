@@ -31,6 +31,11 @@ class FisheyeModel(ParametricModel):
         dpoly = (np.arange(1, len(k) + 1) * k * np.hstack([np.ones((len(q), 1)), powers[:, :-1]])).sum(axis=1)
         return poly, dpoly, powers
 
+    def radial_profile(self, theta: np.ndarray):
+        """θ_d(θ) = θ (1 + k1 θ² + …) and its slope dθ_d/dθ, for angles θ (N,)."""
+        poly, dpoly, _ = self._poly(theta**2)
+        return theta * poly, poly + 2.0 * theta**2 * dpoly
+
     def distort_normalised(self, xn: np.ndarray, jacobian: bool = False):
         """xd = xn · (1 + k1 |xn|² + …) (N, 2); with ``jacobian`` also ∂xd/∂xn
         (N, 2, 2) and ∂xd/∂k (N, 2, n)."""

@@ -1,9 +1,9 @@
 """Cubic B-splines: clamped knot vectors, the basis and its derivative, and the
 tensor-product field ``Δ(u, v)`` of ``formats.md`` (``bspline`` distortion).
 
-Everything is vectorised over points: a point touches 4 basis functions per
+Everything works on arrays of points: a point touches 4 basis functions per
 axis, so a field value is a 16-term sum and the design matrix has 16 non-zeros
-per row. Outside the knot domain the end polynomial pieces are extended, which
+per row (the per-point recurrences run compiled, ``bspline_kernel.py``). Outside the knot domain the end polynomial pieces are extended, which
 is what ``scipy.interpolate.NdBSpline`` does with ``extrapolate=True``.
 """
 from __future__ import annotations
@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from . import bspline_kernel
 from .errors import FormatError
 
 DEGREE = 3
@@ -61,43 +62,13 @@ def find_span(t: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.clip(np.searchsorted(t, x, side="right") - 1, DEGREE, n_basis - 1)
 
 
-def _basis_at(t: np.ndarray, x: np.ndarray, span: np.ndarray, degree: int) -> np.ndarray:
-    """The degree+1 non-zero basis values on ``span`` (The NURBS Book, A2.2), (N, degree+1)."""
-    n = len(x)
-    out = np.zeros((n, degree + 1))
-    out[:, 0] = 1.0
-    left = np.empty((n, degree + 1))
-    right = np.empty((n, degree + 1))
-    for j in range(1, degree + 1):
-        left[:, j] = x - t[span + 1 - j]
-        right[:, j] = t[span + j] - x
-        saved = np.zeros(n)
-        for r in range(j):
-            temp = out[:, r] / (right[:, r + 1] + left[:, j - r])
-            out[:, r] = saved + right[:, r + 1] * temp
-            saved = left[:, j - r] * temp
-        out[:, j] = saved
-    return out
-
-
 def basis(t: np.ndarray, x: np.ndarray, derivative: bool = False):
     """Cubic basis at ``x`` (N,): ``span`` (N,) and values (N, 4) of
     ``N_{span-3..span}``; with ``derivative`` also their first derivatives (N, 4)."""
-    x = np.asarray(x, dtype=np.float64)
+    x = np.ascontiguousarray(x, dtype=np.float64)
     span = find_span(t, x)
-    values = _basis_at(t, x, span, DEGREE)
-    if not derivative:
-        return span, values
-    # N'_{k,3} = 3 (N_{k,2} / (t[k+3] - t[k]) - N_{k+1,2} / (t[k+4] - t[k+1])),
-    # with the quadratic basis N_{span-2..span,2} padded by zeros at both ends.
-    quad = np.zeros((len(x), DEGREE + 2))
-    quad[:, 1:-1] = _basis_at(t, x, span, DEGREE - 1)
-    k = span[:, None] - DEGREE + np.arange(DEGREE + 2)  # k = span-3 .. span+1
-    k = np.clip(k, 0, len(t) - DEGREE - 1)
-    denom = t[np.minimum(k + DEGREE, len(t) - 1)] - t[k]
-    scaled = np.divide(DEGREE * quad, denom, out=np.zeros_like(quad), where=denom > 0)
-    deriv = scaled[:, :-1] - scaled[:, 1:]
-    return span, values, deriv
+    values, deriv = bspline_kernel.basis_rows(t, x, span)
+    return (span, values, deriv) if derivative else (span, values)
 
 
 @dataclass
@@ -170,21 +141,10 @@ class BSplineField:
     def design(self, uv: np.ndarray, derivative: bool = False) -> Design:
         """The sparse rows of the field at points ``uv`` (N, 2)."""
         uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
-        if derivative:
-            su, bu, du = basis(self.knots_u, uv[:, 0], derivative=True)
-            sv, bv, dv = basis(self.knots_v, uv[:, 1], derivative=True)
-        else:
-            su, bu = basis(self.knots_u, uv[:, 0])
-            sv, bv = basis(self.knots_v, uv[:, 1])
-        iu = su[:, None] - DEGREE + np.arange(4)
-        iv = sv[:, None] - DEGREE + np.arange(4)
-        cols = (iu[:, :, None] * self.n_v + iv[:, None, :]).reshape(-1, 16)
-        w = (bu[:, :, None] * bv[:, None, :]).reshape(-1, 16)
-        if not derivative:
-            return Design(cols, w)
-        w_u = (du[:, :, None] * bv[:, None, :]).reshape(-1, 16)
-        w_v = (bu[:, :, None] * dv[:, None, :]).reshape(-1, 16)
-        return Design(cols, w, w_u, w_v)
+        u, v = np.ascontiguousarray(uv[:, 0]), np.ascontiguousarray(uv[:, 1])
+        cols, w, w_u, w_v = bspline_kernel.design_rows(self.knots_u, self.knots_v, u, v, find_span(self.knots_u, u),
+                                                        find_span(self.knots_v, v), self.n_v, derivative)
+        return Design(cols, w, w_u, w_v) if derivative else Design(cols, w)
 
     def __call__(self, uv: np.ndarray) -> np.ndarray:
         """Offsets ``(Δx, Δy)`` at ``uv`` (..., 2) → (..., 2)."""
@@ -199,10 +159,8 @@ class BSplineField:
         return self._combine(d.w, d.cols), jac, d
 
     def _combine(self, weights: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Σ_k weights[n, k] · control[cols[n, k]] per component, (N, 2). One
-        component at a time: gathering (N, 16, 2) at once is 6x slower."""
-        flat = self.control.reshape(-1, 2)
-        return np.stack([np.einsum("nk,nk->n", weights, flat[:, c][cols]) for c in range(2)], axis=-1)
+        """Σ_k weights[n, k] · control[cols[n, k]] per component, (N, 2)."""
+        return bspline_kernel.combine(weights, cols, np.ascontiguousarray(self.control.reshape(-1, 2)))
 
     def bending(self) -> sp.csr_matrix:
         """The smoothness operator of this knot grid (``bending_operator``)."""

@@ -93,7 +93,7 @@ def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Cal
     res = fit.result
     used = ~fit.excluded
     outlier = np.zeros(data.n_points, dtype=bool)
-    solve_settings = SolveSettings(getattr(s, "max_iterations", 500), getattr(s, "ftol", 1e-6))
+    solve_settings = fit.solve_settings or SolveSettings(getattr(s, "max_iterations", 500), getattr(s, "ftol", 1e-6))
     for _ in range(OUTLIER_ROUNDS if outlier_sigma > 0 else 0):
         full = _residuals(res, data)
         new = used & ~outlier & robust_outliers(np.where(used[:, None], full, 0.0), outlier_sigma)

@@ -65,12 +65,18 @@ def gcv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge:
             mu, v = scipy.linalg.eigh(r, s)
         mu = np.maximum(mu, 0.0)
         rhs = v.T @ (b.T @ (w * response[:, c]))
-        lever = np.sum(v * (btwb @ v), axis=0)  # vᵢᵀ BᵀWB vᵢ (a 3-operand einsum is 10x slower)
-        bv = b @ v  # (N, n)
+        # In the eigenbasis the residual is a quadratic in shrink·rhs, with
+        # M = VᵀBᵀWBV: RSS(λ) = dᵀWd − 2 Σ shrink·rhs² + (shrink·rhs)ᵀ M (shrink·rhs),
+        # O(n²) per λ instead of a pass over every corner. (Round-off: ~1e-7
+        # of the score where the field carries the whole distortion, far
+        # below the 2 % that separates choices.)
+        m = v.T @ (btwb @ v)
+        dwd = float(np.sum(w * response[:, c] ** 2))
+        lever = np.diag(m)  # vᵢᵀ BᵀWB vᵢ
         for k, lam in enumerate(lambdas):
             shrink = 1.0 / (1.0 + lam * mu)
-            fitted = bv @ (shrink * rhs)
-            rss = float(np.sum(w * (response[:, c] - fitted) ** 2))
+            p = shrink * rhs
+            rss = max(dwd - 2.0 * float(p @ rhs) + float(p @ (m @ p)), 0.0)
             tr = float(np.sum(shrink * lever))
             score[k] += n_obs * rss / max(n_obs - tr, 1.0) ** 2
             dof[k] += tr

@@ -66,3 +66,16 @@ def test_bending_energy_of_a_quadratic_is_grid_independent():
 def test_bad_knot_vectors_are_named(knots, message):
     with pytest.raises(FormatError, match=message):
         validate_knots(knots, "knots_u")
+
+
+def test_far_and_non_finite_points_give_numbers_not_exceptions(field):
+    """Newton's inversion of a model may probe absurd points; the field answers
+    with (possibly non-finite) numbers there, as numpy would, and stays exact
+    at ordinary points in the same call."""
+    uv = np.array([[-7.5e19, 7.7e19], [np.nan, 1.0], [np.inf, 3.0], [512.3, 640.1]])
+    ref = NdBSpline((field.knots_u, field.knots_v), field.control[..., 0], 3)
+    offsets = field(uv)
+    _, jac, _ = field.evaluate(uv)
+    assert offsets.shape == (4, 2) and jac.shape == (4, 2, 2)
+    assert np.isnan(offsets[1:3]).all()
+    assert np.isclose(offsets[3, 0], ref(uv[3:])[0], atol=1e-10)

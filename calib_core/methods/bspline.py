@@ -397,8 +397,8 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
     def on_iteration(it: int, cost: float) -> None:
         progress("joint optimisation", 0.55 + 0.4 * min(1.0, it / 30))
 
-    res = levenberg_marquardt(model, poses, sub, SolveSettings(s.max_iterations, s.ftol, gauss_newton_trials=True),
-                              on_iteration)
+    final = SolveSettings(s.max_iterations, s.ftol, gauss_newton_trials=True)
+    res = levenberg_marquardt(model, poses, sub, final, on_iteration)
     settings = dataclasses.asdict(s)
     settings.update(res.model.settings_json())
     settings["intervals_used"] = [len(breaks[0]) - 1, len(breaks[1]) - 1]
@@ -416,4 +416,4 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
                       final_response - b @ problem.prior_control(res.model.field).reshape(-1, 2),
                       s.lambda_reg, np.array([lam])).score[0]
     diagnostics["gcv"] = float(score)
-    return Fit(res, ~ok, reason, settings, diagnostics), float(score)
+    return Fit(res, ~ok, reason, settings, diagnostics, solve_settings=final), float(score)

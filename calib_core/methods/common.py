@@ -8,7 +8,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import SettingsError
-from ..solve import SolveResult
+from ..solve import SolveResult, SolveSettings
 
 Progress = Callable[[str, float], None]
 
@@ -34,6 +34,11 @@ class Fit:
     # Refit on a subset of the points (after outlier rejection), for methods
     # whose model is not all refined by LM (residual fields); None: plain LM.
     refit: Callable[[Any, SolveResult], SolveResult] | None = None
+    # How plain LM refits this model (None: the method's max_iterations and
+    # ftol, damped steps). A field's refit wants its final fit's Gauss-Newton
+    # trials: damped steps crawl along its flat valley (BabelCalib's outlier
+    # refits: 13 iterations against 3).
+    solve_settings: SolveSettings | None = None
 
 
 def settings_from(cls, values: dict[str, Any]):

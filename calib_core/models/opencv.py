@@ -63,7 +63,7 @@ class OpenCVModel(ParametricModel):
 
     def distort_normalised(self, xn: np.ndarray, jacobian: bool = False):
         """(x'', y'') (N, 2) of pinhole-normalised ``xn`` (N, 2); with ``jacobian``
-        also ∂/∂xn (N, 2, 2) and ∂/∂[14 coefficients] (N, 2, 14)."""
+        also ∂/∂xn (N, 2, 2) and ∂/∂coefficients (N, 2, 12; 14 with the tilt)."""
         k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4, tx, ty = self._full()
         x, y = xn[:, 0], xn[:, 1]
         r2 = x * x + y * y
@@ -73,10 +73,14 @@ class OpenCVModel(ParametricModel):
         radial = num * inv_den
         xp = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + s1 * r2 + s2 * r4
         yp = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + s3 * r2 + s4 * r4
-        m, dm_x, dm_y = tilt_matrix(tx, ty)
-        hom = np.stack([xp, yp, np.ones_like(xp)], axis=-1) @ m.T  # (N, 3)
-        w = 1.0 / hom[:, 2]
-        out = hom[:, :2] * w[:, None]
+        tilted = len(self.coefficients) == 14  # fewer: no tilt, and none to differentiate
+        if tilted:
+            m, dm_x, dm_y = tilt_matrix(tx, ty)
+            hom = np.stack([xp, yp, np.ones_like(xp)], axis=-1) @ m.T  # (N, 3)
+            w = 1.0 / hom[:, 2]
+            out = hom[:, :2] * w[:, None]
+        else:
+            out = np.stack([xp, yp], axis=-1)
         if not jacobian:
             return out
         n = len(xn)
@@ -92,7 +96,7 @@ class OpenCVModel(ParametricModel):
         j_p[:, 1, 0] = 2 * p2 * y + 2 * x * dyp_dr2
         j_p[:, 1, 1] = radial + 4 * p1 * y + 2 * p2 * x + 2 * y * dyp_dr2
         # ∂(x', y')/∂coefficients (first 12)
-        j_k = np.zeros((n, 2, 14))
+        j_k = np.zeros((n, 2, 14 if tilted else 12))
         for col, coef in ((0, r2), (1, r4), (4, r6)):
             j_k[:, 0, col] = x * coef * inv_den
             j_k[:, 1, col] = y * coef * inv_den
@@ -103,6 +107,8 @@ class OpenCVModel(ParametricModel):
         j_k[:, 1, 2], j_k[:, 1, 3] = r2 + 2 * y * y, 2 * x * y
         j_k[:, 0, 8], j_k[:, 0, 9] = r2, r4
         j_k[:, 1, 10], j_k[:, 1, 11] = r2, r4
+        if not tilted:
+            return out, j_p, j_k
         # The tilt: out = hom[:2] / hom[2], hom = M (x', y', 1).
         j_h = np.zeros((n, 2, 3))  # ∂out/∂hom
         j_h[:, 0, 0] = j_h[:, 1, 1] = w

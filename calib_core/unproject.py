@@ -7,8 +7,8 @@ data, and near the image corners Newton can land on the folded sheet: a ray
 principal branch instead: a polar grid of rays is projected; along each
 azimuth the branch runs from the axis up to the first sample where the map
 stops being a local diffeomorphism (det ∂uv/∂xn ≤ 0); each pixel starts from
-the nearest projected sample of that branch, then damped Newton (vectorised
-over points) refines it to ``tol`` px.
+the nearest projected sample of that branch, then damped Newton
+(``refine_preimage``) refines it to ``tol`` px.
 """
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import camera
-from .models.base import CameraModel
+from .models.base import CameraModel, refine_preimage
 
 N_THETA, N_PHI = 160, 192  # ~0.6° × 1.9° polar grid: start within a fraction of a cell
 MAX_THETA = {"pinhole": np.radians(88.0), "equidistant": np.radians(120.0), "stereographic": np.radians(150.0)}
@@ -52,40 +52,10 @@ def normalised_of_pixel(model: CameraModel, uv: np.ndarray, tol: float = 1e-9,
     if len(xs) == 0:
         return model.normalised_of_pixel(uv, tol, max_iterations)
     _, nearest = cKDTree(us).query(np.where(np.isfinite(uv), uv, 0.0))
-    xn = xs[nearest].copy()
-    err = _error(model, xn, uv)
-    for _ in range(max_iterations):
-        active = np.flatnonzero(np.linalg.norm(err, axis=-1) > tol)
-        if not len(active):
-            break
-        with np.errstate(all="ignore"):
-            p, d_uv, _, _ = model.pixel_of(xn[active], jacobian=True)
-            det = d_uv[:, 0, 0] * d_uv[:, 1, 1] - d_uv[:, 0, 1] * d_uv[:, 1, 0]
-        d_uv[~(np.abs(det) > 1e-300)] = np.eye(2)  # a singular point fails by its error, not by an exception
-        step = np.linalg.solve(d_uv, -(p - uv[active])[..., None])[..., 0]
-        # Backtrack per point so that the pixel error always shrinks.
-        t = np.ones(len(active))
-        e0 = np.linalg.norm(err[active], axis=-1)
-        for _ in range(30):
-            trial = xn[active] + t[:, None] * step
-            e1 = _error(model, trial, uv[active])
-            worse = ~(np.linalg.norm(e1, axis=-1) < e0)
-            if not worse.any():
-                break
-            t[worse] *= 0.5
-        better = ~worse
-        idx = active[better]
-        xn[idx], err[idx] = trial[better], e1[better]
-        if not better.any():
-            break
+    xn, err = refine_preimage(model, xs[nearest], uv, tol, max_iterations)
     with np.errstate(all="ignore"):
         _, d_uv, _, _ = model.pixel_of(np.nan_to_num(xn), jacobian=True)
     det = d_uv[:, 0, 0] * d_uv[:, 1, 1] - d_uv[:, 0, 1] * d_uv[:, 1, 0]
     xn[(np.linalg.norm(err, axis=-1) > max(100 * tol, 1e-6)) | ~(det > 0) | ~np.all(np.isfinite(uv), axis=1)] = np.nan
     return xn
 
-
-def _error(model: CameraModel, xn: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    with np.errstate(all="ignore"):
-        e = model.pixel_of(xn) - uv
-    return np.where(np.isfinite(e), e, np.inf)

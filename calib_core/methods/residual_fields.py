@@ -24,7 +24,7 @@ import numpy as np
 from .. import camera
 from ..errors import DataError, SettingsError
 from ..models.mls import MLSField, MLSModel
-from ..models.tps import TPSField, TPSModel, affine_basis, kernel
+from ..models.tps import TPSField, TPSModel, affine_basis, kernel_matrix
 from ..solve import Data, SolveResult, SolveSettings, levenberg_marquardt, residuals
 from .common import Fit, Progress
 from .opencv import OpenCVSettings, fit_opencv
@@ -94,8 +94,8 @@ def fit_tps_field(samples: np.ndarray, offsets: np.ndarray, scale: float, lambda
     samples, offsets: (N, 2) pixels. Centres: an even subset of the samples."""
     centers = samples[even_subset(samples, max_centers)]
     m = len(centers)
-    phi = kernel(np.linalg.norm(samples[:, None] - centers[None], axis=-1) / scale)  # (N, M)
-    kcc = kernel(np.linalg.norm(centers[:, None] - centers[None], axis=-1) / scale)  # (M, M)
+    phi = kernel_matrix(samples, centers, scale)  # (N, M)
+    kcc = kernel_matrix(centers, centers, scale)  # (M, M)
     qc = affine_basis(centers, scale)
     z = np.linalg.qr(qc, mode="complete")[0][:, 3:]  # w = z v satisfies Qcᵀ w = 0
     x = np.hstack([phi @ z, affine_basis(samples, scale)])

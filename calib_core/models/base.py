@@ -88,40 +88,22 @@ class CameraModel(ABC):
         return self.pixel_of(self.normalised_of_ideal(np.asarray(ideal_uv, dtype=np.float64).reshape(-1, 2)))
 
     def normalised_of_pixel(self, uv: np.ndarray, tol: float = 1e-9, max_iterations: int = 50) -> np.ndarray:
-        """Invert ``pixel_of`` by damped Newton, vectorised over points (N, 2) → (N, 2).
+        """Invert ``pixel_of`` by damped Newton (``refine_preimage``) from
+        ``newton_start``, vectorised over points (N, 2) → (N, 2).
 
         Converges to ``tol`` pixels wherever the model is locally invertible;
         points that do not converge come back as NaN.
         """
         uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
-        xn = self.normalised_of_ideal(uv)
-        err = self._pixel_error(xn, uv)
-        active = np.ones(len(uv), dtype=bool)
-        for _ in range(max_iterations):
-            active &= np.linalg.norm(err, axis=-1) > tol
-            if not active.any():
-                break
-            idx = np.flatnonzero(active)
-            p, d_uv, _, _ = self.pixel_of(xn[idx], jacobian=True)
-            step = np.linalg.solve(d_uv, -(p - uv[idx])[..., None])[..., 0]
-            # Backtrack per point so that the pixel error always shrinks.
-            t = np.ones(len(idx))
-            e0 = np.linalg.norm(err[idx], axis=-1)
-            for _ in range(20):
-                trial = xn[idx] + t[:, None] * step
-                e1 = self._pixel_error(trial, uv[idx])
-                bad = ~(np.linalg.norm(e1, axis=-1) < e0)
-                if not bad.any():
-                    break
-                t[bad] *= 0.5
-            xn[idx], err[idx] = trial, e1
+        xn, err = refine_preimage(self, self.newton_start(uv), uv, tol, max_iterations)
         xn[np.linalg.norm(err, axis=-1) > max(tol * 100, 1e-6)] = np.nan
         return xn
 
-    def _pixel_error(self, xn, uv):
-        with np.errstate(all="ignore"):
-            e = self.pixel_of(xn) - uv
-        return np.where(np.isfinite(e), e, np.inf)
+    def newton_start(self, uv: np.ndarray) -> np.ndarray:
+        """Where Newton starts inverting pixels ``uv`` (N, 2): the undistorted
+        guess. Models that add a field to a core start nearer, from the core's
+        own inverse."""
+        return self.normalised_of_ideal(uv)
 
     def undistort_points(self, uv: np.ndarray) -> np.ndarray:
         """Observed pixels (N, 2) → ideal pixels (N, 2): the inverse of ``distort``."""
@@ -177,6 +159,69 @@ class ParametricModel(CameraModel):
         vals[:, 1, 0], vals[:, 1, 1] = xd[:, 1], 1.0
         vals[:, :, 2:] = f[None, :, None] * d_k[:, :, :nk]
         return uv, f[None, :, None] * d_xd, cols, vals
+
+
+# Lengths (1, 1/2, 1/4, ...) a Newton step is tried at before its point counts as stuck.
+BACKTRACKS = 30
+
+
+def refine_preimage(model: CameraModel, xn: np.ndarray, uv: np.ndarray, tol: float,
+                    max_iterations: int) -> tuple[np.ndarray, np.ndarray]:
+    """Damped Newton for ``model.pixel_of(xn) = uv`` from ``xn`` (N, 2),
+    vectorised over points: the refined ``xn`` and its pixel error (N, 2).
+
+    Each point backtracks so that its error always shrinks. A point no step
+    shrinks is stuck (outside where the model is invertible: a fold, a pole,
+    a field far from its data) and stops there: retrying would repeat the
+    same step, and such points cost the most evaluations."""
+    xn = np.array(xn, dtype=np.float64)
+    err = pixel_error(model, xn, uv)
+    active = np.flatnonzero(np.linalg.norm(err, axis=-1) > tol)
+    for _ in range(max_iterations):
+        if not len(active):
+            break
+        with np.errstate(all="ignore"):
+            p, d_uv, _, _ = model.pixel_of(xn[active], jacobian=True)
+            det = d_uv[:, 0, 0] * d_uv[:, 1, 1] - d_uv[:, 0, 1] * d_uv[:, 1, 0]
+        d_uv[~(np.abs(det) > 1e-300)] = np.eye(2)  # a singular point fails by its error, not by an exception
+        with np.errstate(all="ignore"):
+            step = np.linalg.solve(d_uv, -(p - uv[active])[..., None])[..., 0]
+        e0 = np.linalg.norm(err[active], axis=-1)
+        trial = xn[active] + step
+        e1 = pixel_error(model, trial, uv[active])
+        worse = ~(np.linalg.norm(e1, axis=-1) < e0)
+        t = np.ones(len(active))
+        for _ in range(BACKTRACKS - 1):  # only the points whose step overshot are evaluated again
+            redo = np.flatnonzero(worse)
+            if not len(redo):
+                break
+            t[redo] *= 0.5
+            trial[redo] = xn[active[redo]] + t[redo, None] * step[redo]
+            e1[redo] = pixel_error(model, trial[redo], uv[active[redo]])
+            worse[redo] = ~(np.linalg.norm(e1[redo], axis=-1) < e0[redo])
+        moved = active[~worse]
+        xn[moved], err[moved] = trial[~worse], e1[~worse]
+        active = moved[np.linalg.norm(err[moved], axis=-1) > tol]
+    return xn, err
+
+
+def core_inverse_start(model: CameraModel, core: CameraModel, uv: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """A Newton start for a model that adds a small field f to ``core``'s
+    pixel p, uv = p + f(p): the core's inverse of p ≈ uv − f(uv) (``offset``
+    = f(uv)), off by about f'·f. Where the core cannot invert that, the
+    undistorted guess."""
+    with np.errstate(all="ignore"):
+        xn = core.normalised_of_pixel(uv - offset, tol=1e-6)
+    lost = ~np.all(np.isfinite(xn), axis=1)
+    xn[lost] = model.normalised_of_ideal(uv[lost])
+    return xn
+
+
+def pixel_error(model: CameraModel, xn: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """``model.pixel_of(xn) − uv`` (N, 2), infinite where not finite."""
+    with np.errstate(all="ignore"):
+        e = model.pixel_of(xn) - uv
+    return np.where(np.isfinite(e), e, np.inf)
 
 
 def intrinsics_jacobian(xn: np.ndarray, a: np.ndarray) -> np.ndarray:

@@ -25,7 +25,7 @@ import scipy.sparse as sp
 
 from ..bspline import BSplineField
 from ..errors import FormatError
-from .base import CameraModel
+from .base import CameraModel, core_inverse_start
 from .bspline import GAUGE_WEIGHT, field_prior_rows, recorded_regularisation
 
 
@@ -100,6 +100,9 @@ class HybridModel(CameraModel):
         out_cols[:, 1, 2 * c :] = k + nc + design.cols
         out_vals[:, :, 2 * c :] = design.w[:, None, :]
         return p + offset, a @ d_xn, out_cols, out_vals
+
+    def newton_start(self, uv: np.ndarray) -> np.ndarray:
+        return core_inverse_start(self, self.core, uv, self.field(uv))
 
     def prior(self):
         if self._prior is None:

@@ -20,21 +20,116 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.spatial import cKDTree
+from numba import njit
 
 from .residual_field import ResidualFieldModel, float_array, positive
 
-CHUNK = 4096  # evaluation points per block: bounds the neighbour pairs held at once
-
-# Monomial exponents (a, b) with a + b ≤ order, and their columns in the raw-moment matrix.
-_EXPONENTS = {o: [(a, t - a) for t in range(o + 1) for a in range(t, -1, -1)] for o in (2, 3)}
-_RAW = {e: i for i, e in enumerate(_EXPONENTS[3])}
-_RAWD = {e: 10 + 2 * i for i, e in enumerate(_EXPONENTS[2])}
+# Neighbour search: the samples are bucketed in square cells of side R, so a
+# point's neighbours lie in the 3 × 3 cells around its own.
 
 
-def _binom(n: int, k: int) -> int:
-    return 1 if k in (0, n) else n  # n ≤ 3: C(n, k) for 0 < k < n is n
+@njit(cache=True, nogil=True, error_model="numpy")
+def _evaluate(p, samples, offsets, order, cell_start, lo, n_x, n_y, sigma, support, ridge):  # pragma: no cover (compiled)
+    """Offsets (N, 2) and gradients ∂f/∂p (N, 2, 2) at pixels ``p`` (N, 2).
+
+    Per point the weighted sums S = Σ w g gᵀ, T_k = Σ w u_k g gᵀ, B = Σ w g dᵀ
+    and U_k = Σ w u_k g dᵀ (u = (s − p)/R, g = [1, u]) give c = M⁻¹ B with
+    M = S + εI, and with ∂w/∂p_k = κ w u_k (κ = R/σ²), ∂g/∂p_k = −e_{k+1}/R:
+    ∂c/∂p_k = M⁻¹ (∂B_k − ∂M_k c)."""
+    n = len(p)
+    off = np.empty((n, 2))
+    grad = np.empty((n, 2, 2))
+    r2max, half_inv_var, inv_r, kappa = support * support, 0.5 / (sigma * sigma), 1.0 / support, support / (sigma * sigma)
+    s_, t_, b_, u_ = np.empty((3, 3)), np.empty((2, 3, 3)), np.empty((3, 2)), np.empty((2, 3, 2))
+    g, minv, coef, rhs = np.empty(3), np.empty((3, 3)), np.empty((3, 2)), np.empty((3, 2))
+    for a in range(n):
+        px, py = p[a, 0], p[a, 1]
+        if not (np.isfinite(px) and np.isfinite(py)):
+            off[a] = np.nan
+            grad[a] = np.nan
+            continue
+        s_[:] = 0.0
+        t_[:] = 0.0
+        b_[:] = 0.0
+        u_[:] = 0.0
+        fx, fy = (px - lo[0]) * inv_r, (py - lo[1]) * inv_r
+        if -2.0 < fx < n_x + 1.0 and -2.0 < fy < n_y + 1.0:  # else no sample within R
+            cx, cy = int(np.floor(fx)), int(np.floor(fy))
+            for ix in range(max(cx - 1, 0), min(cx + 2, n_x)):
+                for iy in range(max(cy - 1, 0), min(cy + 2, n_y)):
+                    cell = ix * n_y + iy
+                    for q in range(cell_start[cell], cell_start[cell + 1]):
+                        j = order[q]
+                        dx, dy = samples[j, 0] - px, samples[j, 1] - py
+                        d2 = dx * dx + dy * dy
+                        if d2 > r2max:
+                            continue
+                        w = np.exp(-d2 * half_inv_var)
+                        g[0], g[1], g[2] = 1.0, dx * inv_r, dy * inv_r
+                        for i in range(3):
+                            wg = w * g[i]
+                            for m in range(3):
+                                wgg = wg * g[m]
+                                s_[i, m] += wgg
+                                t_[0, i, m] += wgg * g[1]
+                                t_[1, i, m] += wgg * g[2]
+                            for c in range(2):
+                                wgd = wg * offsets[j, c]
+                                b_[i, c] += wgd
+                                u_[0, i, c] += wgd * g[1]
+                                u_[1, i, c] += wgd * g[2]
+        inv = _inverse3(s_, ridge, minv)
+        if not inv:
+            off[a] = np.nan
+            grad[a] = np.nan
+            continue
+        for i in range(3):  # coef = M⁻¹ B
+            for c in range(2):
+                coef[i, c] = minv[i, 0] * b_[0, c] + minv[i, 1] * b_[1, c] + minv[i, 2] * b_[2, c]
+        off[a, 0], off[a, 1] = coef[0, 0], coef[0, 1]
+        for k in range(2):  # the two pixel axes: only row 0 of M⁻¹ (∂B_k − ∂M_k c) is needed
+            for i in range(3):
+                for c in range(2):
+                    rhs[i, c] = kappa * (u_[k, i, c] - (t_[k, i, 0] * coef[0, c] + t_[k, i, 1] * coef[1, c]
+                                                        + t_[k, i, 2] * coef[2, c]))
+                    rhs[i, c] += s_[i, 0] * inv_r * coef[k + 1, c]  # −∂M column k+1: −s_[i, 0]/R
+            for c in range(2):
+                for m in range(3):
+                    rhs[k + 1, c] += s_[0, m] * inv_r * coef[m, c]  # −∂M row k+1: −s_[0, m]/R
+                rhs[k + 1, c] -= b_[0, c] * inv_r  # ∂B row k+1: −Σ w d / R
+            for c in range(2):
+                grad[a, c, k] = minv[0, 0] * rhs[0, c] + minv[0, 1] * rhs[1, c] + minv[0, 2] * rhs[2, c]
+    return off, grad
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _inverse3(s, ridge, out):  # pragma: no cover (compiled)
+    """``out`` = (s + ridge·I)⁻¹ of a symmetric 3 × 3 by cofactors; False if singular."""
+    a, b, c = s[0, 0] + ridge, s[0, 1], s[0, 2]
+    d, e, f = s[1, 1] + ridge, s[1, 2], s[2, 2] + ridge
+    c00, c01, c02 = d * f - e * e, c * e - b * f, b * e - c * d
+    det = a * c00 + b * c01 + c * c02
+    if not det != 0.0:
+        return False
+    r = 1.0 / det
+    out[0, 0], out[0, 1], out[0, 2] = c00 * r, c01 * r, c02 * r
+    out[1, 0], out[1, 1], out[1, 2] = c01 * r, (a * f - c * c) * r, (b * c - a * e) * r
+    out[2, 0], out[2, 1], out[2, 2] = c02 * r, (b * c - a * e) * r, (a * d - b * b) * r
+    return True
+
+
+def _buckets(samples: np.ndarray, size: float):
+    """The samples bucketed in square cells of side ``size``: (order, cell_start,
+    lo, n_x, n_y), cell (ix, iy) holding ``order[cell_start[ix·n_y + iy] : …+1]``."""
+    if not len(samples):
+        return np.zeros(0, dtype=np.int64), np.zeros(2, dtype=np.int64), np.zeros(2), 1, 1
+    lo = samples.min(axis=0)
+    ij = np.floor((samples - lo) / size).astype(np.int64)
+    n_x, n_y = int(ij[:, 0].max()) + 1, int(ij[:, 1].max()) + 1
+    cell = ij[:, 0] * n_y + ij[:, 1]
+    order = np.argsort(cell, kind="stable")
+    cell_start = np.concatenate([[0], np.cumsum(np.bincount(cell, minlength=n_x * n_y))])
+    return order, cell_start, lo, n_x, n_y
 
 
 class MLSField:
@@ -44,77 +139,11 @@ class MLSField:
         self.sigma = float(sigma)
         self.support = float(support if support is not None else 3.0 * sigma)
         self.ridge = float(ridge)
-        self._tree = cKDTree(self.samples)
-        self._mono = None
+        self._buckets = _buckets(self.samples, self.support)
 
     def evaluate(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        p = np.asarray(p, dtype=np.float64).reshape(-1, 2)
-        off = np.zeros((len(p), 2))
-        grad = np.zeros((len(p), 2, 2))
-        ok = np.all(np.isfinite(p), axis=1)
-        idx = np.flatnonzero(ok)
-        for start in range(0, len(idx), CHUNK):  # blocks of points, not a loop per point
-            sel = idx[start : start + CHUNK]
-            off[sel], grad[sel] = self._block(p[sel])
-        off[~ok] = np.nan
-        grad[~ok] = np.nan
-        return off, grad
-
-    def _block(self, p: np.ndarray):
-        """Offsets (n, 2) and gradients (n, 2, 2) at pixels ``p`` (n, 2).
-
-        Every sum Σ_j w_j u_j^α (d_j) with u_j = (s_j − p)/R is a central moment
-        about p; we get them from raw moments about the image origin, which are
-        one sparse (n × K) · (K × 22) product: no per-pair 3 × 3 arrays."""
-        n, big_r = len(p), self.support
-        pairs = cKDTree(p).sparse_distance_matrix(self._tree, big_r, output_type="ndarray")
-        w = np.exp(-0.5 * pairs["v"] ** 2 / self.sigma**2)
-        wmat = sp.csr_matrix((w, (pairs["i"], pairs["j"])), shape=(n, len(self.samples)))
-        raw = np.asarray(wmat @ self._monomials)  # (n, 22)
-        q = (p - self._origin) / big_r  # the evaluation points in the same units
-        cm = {}  # central moments c(a, b) = Σ w u1^a u2^b, and e(a, b) = Σ w u1^a u2^b d (2,)
-        for a, b in _EXPONENTS[3]:
-            cm[a, b] = sum(_binom(a, i) * _binom(b, j) * (-q[:, 0]) ** (a - i) * (-q[:, 1]) ** (b - j) * raw[:, _RAW[i, j]]
-                           for i in range(a + 1) for j in range(b + 1))
-        em = {}
-        for a, b in _EXPONENTS[2]:
-            em[a, b] = sum((_binom(a, i) * _binom(b, j) * (-q[:, 0]) ** (a - i) * (-q[:, 1]) ** (b - j))[:, None]
-                           * raw[:, _RAWD[i, j] : _RAWD[i, j] + 2] for i in range(a + 1) for j in range(b + 1))
-        unit = [(0, 0), (1, 0), (0, 1)]  # exponents of g = [1, u1, u2]
-
-        def add(*es):
-            return tuple(map(sum, zip(*es)))
-
-        m = np.stack([np.stack([cm[add(unit[i], unit[j])] for j in range(3)], -1) for i in range(3)], -2)
-        m += self.ridge * np.eye(3)
-        bvec = np.stack([em[unit[i]] for i in range(3)], axis=1)  # (n, 3, 2)
-        c = np.linalg.solve(m, bvec)
-        kappa = big_r / self.sigma**2  # ∂w/∂p_k = κ w u_k;  ∂g_i/∂p_k = −[i = k+1]/R
-        grad = np.empty((n, 2, 2))
-        for k in range(2):  # the two pixel axes
-            ek = unit[k + 1]
-            dm = kappa * np.stack([np.stack([cm[add(unit[i], unit[j], ek)] for j in range(3)], -1) for i in range(3)], -2)
-            dm[:, k + 1, :] -= np.stack([cm[unit[j]] for j in range(3)], -1) / big_r
-            dm[:, :, k + 1] -= np.stack([cm[unit[i]] for i in range(3)], -1) / big_r
-            db = kappa * np.stack([em[add(unit[i], ek)] for i in range(3)], axis=1)
-            db[:, k + 1, :] -= em[0, 0] / big_r
-            grad[:, :, k] = np.linalg.solve(m, db - dm @ c)[:, 0, :]
-        return c[:, 0, :], grad
-
-    @property
-    def _origin(self) -> np.ndarray:
-        return self.samples.mean(axis=0)
-
-    @property
-    def _monomials(self) -> np.ndarray:
-        """(K, 22): t^α for |α| ≤ 3 (10 columns), then t^α d for |α| ≤ 2 (6 × 2), t = (s − origin)/R."""
-        if getattr(self, "_mono", None) is None:
-            t = (self.samples - self._origin) / self.support
-            cols = [t[:, 0] ** a * t[:, 1] ** b for a, b in _EXPONENTS[3]]
-            for a, b in _EXPONENTS[2]:
-                cols += [t[:, 0] ** a * t[:, 1] ** b * self.offsets[:, 0], t[:, 0] ** a * t[:, 1] ** b * self.offsets[:, 1]]
-            self._mono = np.column_stack(cols)
-        return self._mono
+        p = np.ascontiguousarray(p, dtype=np.float64).reshape(-1, 2)
+        return _evaluate(p, self.samples, self.offsets, *self._buckets, self.sigma, self.support, self.ridge)
 
     def to_json(self) -> dict[str, Any]:
         return {"samples": self.samples.tolist(), "offsets_x": self.offsets[:, 0].tolist(),

@@ -14,7 +14,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from ..errors import FormatError
-from .base import CameraModel
+from .base import CameraModel, core_inverse_start
 from .opencv import OpenCVModel
 
 
@@ -57,6 +57,9 @@ class ResidualFieldModel(CameraModel):
         new_cols = np.stack([both, both], axis=1)
         new_vals = np.concatenate([a[:, :, 0:1] * vals[:, None, 0], a[:, :, 1:2] * vals[:, None, 1]], axis=2)
         return p + off, a @ d_p, new_cols, new_vals
+
+    def newton_start(self, uv: np.ndarray) -> np.ndarray:
+        return core_inverse_start(self, self.parametric, uv, self.field.evaluate(uv)[0])
 
     def distortion_json(self) -> dict[str, Any]:
         return {"type": self.kind, "parametric": self.parametric.distortion_json(), **self.field.to_json()}

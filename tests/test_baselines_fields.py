@@ -30,6 +30,21 @@ def test_mls_matches_its_formula():
     assert np.allclose(field.evaluate(p)[0], brute_mls(field, p), atol=1e-9)
 
 
+def test_mls_with_any_support_matches_its_formula():
+    """The neighbour buckets hold for a support far smaller or larger than the
+    samples' spread (a saved file may carry any positive value), and points
+    far outside the samples get the core alone (offset 0)."""
+    rng = np.random.default_rng(3)
+    samples = np.column_stack([rng.uniform(0, 1000, 300), rng.uniform(0, 800, 300)])
+    offsets = rng.normal(0, 1.0, (300, 2))
+    p = np.vstack([samples[:20] + 1e-4, np.column_stack([rng.uniform(-50, 1050, 20), rng.uniform(-50, 850, 20)]),
+                   [[1e30, 0.0], [-5e6, 4e6]]])
+    for support in (3e-4, 2.0, 5000.0):
+        field = MLSField(samples, offsets, sigma=support / 3, support=support)
+        assert np.allclose(field.evaluate(p)[0], brute_mls(field, p), atol=1e-9)
+        assert np.all(field.evaluate(p[-2:])[0] == 0.0)
+
+
 def test_mls_first_order_reproduces_an_affine_field():
     rng = np.random.default_rng(1)
     samples = np.column_stack([rng.uniform(0, 1000, 800), rng.uniform(0, 800, 800)])

@@ -24,12 +24,15 @@ from numba import njit
 
 from .residual_field import ResidualFieldModel, float_array, positive
 
-# Neighbour search: the samples are bucketed in square cells of side R, so a
-# point's neighbours lie in the 3 × 3 cells around its own.
+# Neighbour search: the samples are bucketed in square cells of side ≥ R, so a
+# point's neighbours lie in the 3 × 3 cells around its own. At most this many
+# cells per axis: a tiny support (any positive value is valid JSON) would
+# otherwise ask for an enormous grid.
+MAX_CELLS = 1024
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _evaluate(p, samples, offsets, order, cell_start, lo, n_x, n_y, sigma, support, ridge):  # pragma: no cover (compiled)
+def _evaluate(p, samples, offsets, order, cell_start, lo, cell_size, n_x, n_y, sigma, support, ridge):  # pragma: no cover (compiled)
     """Offsets (N, 2) and gradients ∂f/∂p (N, 2, 2) at pixels ``p`` (N, 2).
 
     Per point the weighted sums S = Σ w g gᵀ, T_k = Σ w u_k g gᵀ, B = Σ w g dᵀ
@@ -52,7 +55,7 @@ def _evaluate(p, samples, offsets, order, cell_start, lo, n_x, n_y, sigma, suppo
         t_[:] = 0.0
         b_[:] = 0.0
         u_[:] = 0.0
-        fx, fy = (px - lo[0]) * inv_r, (py - lo[1]) * inv_r
+        fx, fy = (px - lo[0]) / cell_size, (py - lo[1]) / cell_size
         if -2.0 < fx < n_x + 1.0 and -2.0 < fy < n_y + 1.0:  # else no sample within R
             cx, cy = int(np.floor(fx)), int(np.floor(fy))
             for ix in range(max(cx - 1, 0), min(cx + 2, n_x)):
@@ -78,8 +81,7 @@ def _evaluate(p, samples, offsets, order, cell_start, lo, n_x, n_y, sigma, suppo
                                 b_[i, c] += wgd
                                 u_[0, i, c] += wgd * g[1]
                                 u_[1, i, c] += wgd * g[2]
-        inv = _inverse3(s_, ridge, minv)
-        if not inv:
+        if not _inverse3(s_, ridge, minv):
             off[a] = np.nan
             grad[a] = np.nan
             continue
@@ -118,18 +120,20 @@ def _inverse3(s, ridge, out):  # pragma: no cover (compiled)
     return True
 
 
-def _buckets(samples: np.ndarray, size: float):
-    """The samples bucketed in square cells of side ``size``: (order, cell_start,
-    lo, n_x, n_y), cell (ix, iy) holding ``order[cell_start[ix·n_y + iy] : …+1]``."""
+def _buckets(samples: np.ndarray, support: float):
+    """The samples bucketed in square cells of side ``size`` ≥ ``support``:
+    (order, cell_start, lo, size, n_x, n_y), cell (ix, iy) holding
+    ``order[cell_start[ix·n_y + iy] : cell_start[ix·n_y + iy + 1]]``."""
     if not len(samples):
-        return np.zeros(0, dtype=np.int64), np.zeros(2, dtype=np.int64), np.zeros(2), 1, 1
+        return np.zeros(0, dtype=np.int64), np.zeros(2, dtype=np.int64), np.zeros(2), support, 1, 1
     lo = samples.min(axis=0)
+    size = max(support, float(np.max(samples.max(axis=0) - lo)) / MAX_CELLS)
     ij = np.floor((samples - lo) / size).astype(np.int64)
     n_x, n_y = int(ij[:, 0].max()) + 1, int(ij[:, 1].max()) + 1
-    cell = ij[:, 0] * n_y + ij[:, 1]
-    order = np.argsort(cell, kind="stable")
-    cell_start = np.concatenate([[0], np.cumsum(np.bincount(cell, minlength=n_x * n_y))])
-    return order, cell_start, lo, n_x, n_y
+    cells = ij[:, 0] * n_y + ij[:, 1]
+    order = np.argsort(cells, kind="stable")
+    cell_start = np.concatenate([[0], np.cumsum(np.bincount(cells, minlength=n_x * n_y))])
+    return order, cell_start, lo, size, n_x, n_y
 
 
 class MLSField:

@@ -177,11 +177,15 @@ def candidate_breaks(d: np.ndarray, w: np.ndarray, lo: float, hi: float, setting
     """Step 3: domain ends, KDE maxima and quartiles (the paper), and with
     ``quantile_intervals`` the KDE's equal-mass quantiles; deduplicated, sorted."""
     h = bandwidth(d, w, settings)
-    cands = np.concatenate([[lo, hi], kde_maxima(d, w, h), np.percentile(d, [25, 50, 75]),
+    cands = np.concatenate([kde_maxima(d, w, h), np.percentile(d, [25, 50, 75]),
                             kde_quantiles(d, w, h, quantile_intervals)])
-    cands = np.sort(cands[(cands >= lo) & (cands <= hi)])
+    # Interior candidates only, at least tol from the ends and from each other:
+    # the domain ends themselves stay exact (a corner at the edge of the
+    # domain once replaced its end by 519.9999999999999).
     tol = 1e-6 * (hi - lo)
-    return cands[np.concatenate([[True], np.diff(cands) > tol])]
+    cands = np.sort(cands[(cands > lo + tol) & (cands < hi - tol)])
+    cands = cands[np.concatenate([[True], np.diff(cands) > tol])] if len(cands) else cands
+    return np.concatenate([[lo], cands, [hi]])
 
 
 def inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:

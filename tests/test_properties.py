@@ -14,7 +14,7 @@ import copy
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -139,6 +139,7 @@ strategies = st.sampled_from(["kde", "kde-paper", "uniform"])
 
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(clouds, strategies, st.integers(-2, 20), st.integers(-2, 20), st.floats(0.0, 1.0), st.integers(0, 3))
+@example(np.array([[1.0, 1.0]]), "kde", 1, 1, 0.9999999999999999, 0)  # a corner 1e-13 from the domain's end
 def test_any_point_cloud_gives_a_full_rank_design_or_a_settings_error(unit, strategy, nu, nv, squash, clusters):
     # corners anywhere in the domain, possibly squashed onto a line or a few points (degenerate clouds)
     u0, u1, v0, v1 = DOMAIN

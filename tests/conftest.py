@@ -2,11 +2,20 @@
 from __future__ import annotations
 
 import functools
+import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 from calib_core import synth
+
+# The property tests draw new random examples on every run, so rare bugs
+# surface over time (a knot at the domain's end was found so); CI replays one
+# fixed draw, so that a merge is judged on the code, not on the luck of a draw.
+settings.register_profile("ci", derandomize=True)
+if os.environ.get("CI"):
+    settings.load_profile("ci")
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = ROOT.parent / "shared" / "data"

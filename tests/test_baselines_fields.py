@@ -6,7 +6,7 @@ from calib_core.calibration import Calibration
 from calib_core.methods.residual_fields import fit_tps_field
 from calib_core.models.mls import MLSField, MLSModel
 from calib_core.models.opencv import OpenCVModel
-from calib_core.models.tps import TPSField, TPSModel
+from calib_core.models.tps import TPSModel
 
 
 def brute_mls(field: MLSField, p):

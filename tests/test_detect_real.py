@@ -5,7 +5,6 @@ import functools
 import json
 
 import numpy as np
-import pytest
 from scipy.spatial import cKDTree
 
 from calib_core.board import BoardSpec

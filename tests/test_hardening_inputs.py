@@ -13,7 +13,6 @@ import json
 import struct
 import zipfile
 import zlib
-from pathlib import Path
 
 import cv2
 import numpy as np

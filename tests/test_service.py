@@ -3,7 +3,6 @@ SQLite queue) in a subprocess, a real SQLite file, real result files."""
 from __future__ import annotations
 
 import io
-import json
 import zipfile
 
 import pytest

@@ -23,6 +23,7 @@ from numba import njit
 
 from .residual_field import ResidualFieldModel, float_array, positive
 
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def kernel_matrix(p, centers, scale):  # pragma: no cover (compiled)
     """φ(|p_a − c_i| / S) (N, M), φ(r) = r² ln r = ½ r² ln r², 0 at r = 0."""

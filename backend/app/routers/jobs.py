@@ -10,7 +10,7 @@ from ..deps import ContextDep, QueueDep
 from ..errors import ApiError
 from ..presenters import job_public
 from ..repository import jobs as job_rows
-from ..schemas import Created, JobCreate, JobPublic, JobsPublic, Message
+from ..schemas import JobCreate, JobPublic, JobsPublic, Message
 from ..security import QuotaDep, client_of
 from ..services import jobs as service
 

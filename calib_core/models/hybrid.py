@@ -14,7 +14,7 @@ fixed pixel (the initial principal point), so the core keeps the affine part.
 
 ``field_held``: the field is zero and not fitted, the core is (all of it):
 what the B-spline method returns when the corners give the field nothing to
-model (``methods/bspline.py``, core choice).
+model (``methods/bspline_auto.py``, the model choice).
 """
 from __future__ import annotations
 

@@ -24,6 +24,7 @@ from scipy.spatial import cKDTree
 
 from . import metrics, quality
 from .calibration import Calibration
+from .crossval import folds
 from .errors import CalibError, DataError, SettingsError
 from .init import poses_from_rays
 from .methods import METHODS
@@ -48,11 +49,6 @@ def validation_residuals(cal: Calibration, obs: Observations) -> tuple[np.ndarra
                         "(too few corners the model can unproject)")
     res = levenberg_marquardt(cal.model, poses, data, SolveSettings(max_iterations=200, fix_model=True))
     return res.residuals, data
-
-
-def folds(n_views: int, splits: int) -> list[np.ndarray]:
-    """View indices validated in each split: interleaved, each view exactly once."""
-    return [np.arange(k, n_views, splits) for k in range(splits)]
 
 
 def neighbour_correlation(residuals: np.ndarray, object_points: np.ndarray, view_index: np.ndarray,

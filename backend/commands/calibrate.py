@@ -10,7 +10,7 @@ from pathlib import Path
 from calib_core import Observations, calibrate
 from calib_core.detect import IMAGE_SUFFIXES
 from calib_core.errors import SettingsError
-from calib_core.methods.bspline import GCV_TOLERANCE
+from calib_core.methods.bspline_auto import CV_TOLERANCE
 
 from .detect import BOARD_HELP, detect_with_report
 from .output import StageProgress, print_json, table
@@ -143,10 +143,12 @@ def print_summary(cal) -> None:
     print(f"method {cal.method}: fx={fx:.3f} fy={fy:.3f} cx={cx:.3f} cy={cy:.3f} skew={s:.4f} (pixels)")
     candidates = d.get("core_candidates")
     if candidates:
-        print(f"model chosen by generalised cross-validation of the corners (the simplest within "
-              f"{100 * GCV_TOLERANCE:.0f} % of the lowest score):")
-        table(["model", "GCV score [px^2]", "chosen"],
-              [(c["model"], "cannot fit these corners" if c["gcv"] is None else c["gcv"], "*" if c["chosen"] else "")
+        print(f"model chosen: {d['core_choice'].split(':')[0]}; each candidate's validation error over splits of "
+              f"the views (the simplest within {100 * CV_TOLERANCE:.0f} % or one standard error of the lowest is "
+              "kept; '-': not validated) and the GCV of its corners:")
+        table(["model", "validation [px^2]", "GCV [px^2]", "chosen"],
+              [(c["model"], "-" if c.get("cv") is None else c["cv"],
+                "cannot fit these corners" if c["gcv"] is None else c["gcv"], "*" if c["chosen"] else "")
                for c in candidates])
     elif "core_choice" in d:
         print(f"model: {d['core_choice']}")

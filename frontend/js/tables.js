@@ -40,18 +40,23 @@ export function viewsTable(views, title) {
   return el("div", { class: "table-wrap scroll-y" }, table);
 }
 
-/** The B-spline method's model choice (core="auto"): GCV score per candidate model, the simplest close to the lowest kept. */
+/** The B-spline method's model choice (core="auto"): each candidate's cross-validated error over views (and GCV of
+ * its corners), the simplest within the noise of the lowest kept. Files from before the cross-validation have GCV only. */
 export function modelChoiceTable(calibration) {
   const candidates = (calibration.diagnostics || {}).core_candidates || [];
   if (!candidates.length) return "";
+  const score = (c, key) => (c[key] == null ? (c.gcv == null ? "cannot fit these corners" : "—") : num(c[key], 4));
   const table = el("table", { id: "metrics-model-choice" },
-    el("caption", {}, "Model chosen from the data (generalised cross-validation of the corners)"),
-    el("thead", {}, el("tr", {}, ["model", "GCV score [px²]", ""].map((h) => el("th", { scope: "col" }, h)))),
+    el("caption", {}, "Model chosen from the data (cross-validation over the views)"),
+    el("thead", {}, el("tr", {}, ["model", "validation error [px²]", "GCV of the corners [px²]", ""]
+      .map((h) => el("th", { scope: "col" }, h)))),
     el("tbody", {}, candidates.map((c) => el("tr", { class: c.chosen ? "best" : "" },
-      el("th", { scope: "row" }, c.model), el("td", {}, c.gcv == null ? "cannot fit these corners" : num(c.gcv, 4)),
+      el("th", { scope: "row" }, c.model), el("td", {}, score(c, "cv")), el("td", {}, score(c, "gcv")),
       el("td", {}, c.chosen ? "chosen" : "")))));
-  const note = el("p", { class: "muted" }, "Lower predicts the corners better; the simplest model within 2 % of the " +
-    "lowest score is kept. A core alone means the field had nothing to add: it is zero and held.");
+  const note = el("p", { class: "muted" }, "Validation error: each view predicted by the model refitted without it " +
+    "(mean squared residual per corner, both axes). The simplest model within 2 % or one standard error of the lowest " +
+    "is kept; — : not validated (too far behind by GCV, or a view split it could not be refit on). A core alone means the field had nothing to add: " +
+    "it is zero and held.");
   return el("div", { class: "table-wrap" }, table, note);
 }
 

@@ -1,0 +1,69 @@
+"""Cross-validation over views: how well a fitted model predicts views it has not seen.
+
+The same protocol as ``compare`` and ``evaluate``: the model is fitted
+without the validated views, then held while only their poses are refit.
+Here the model's structure (its knots, smoothing, which parameters are free)
+is held too and each refit starts from the full fit, so that scoring a model
+costs a few solver iterations per fold, not a calibration.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+
+from .solve import Data, SolveSettings, levenberg_marquardt
+
+
+def folds(n_views: int, splits: int) -> list[np.ndarray]:
+    """View indices validated in each split: interleaved, each view exactly once."""
+    return [np.arange(k, n_views, splits) for k in range(splits)]
+
+
+def select_views(data: Data, views: np.ndarray, points: np.ndarray) -> Data:
+    """The ``points`` (bool mask) of ``views``, renumbered 0..len(views)-1 in that order."""
+    renumber = np.full(data.n_views, -1)
+    renumber[views] = np.arange(len(views))
+    keep = points & (renumber[data.view_index] >= 0)
+    return Data(data.object_points[keep], data.image_points[keep], renumber[data.view_index[keep]], len(views))
+
+
+def view_errors(refit: Callable[[Data, np.ndarray], Any], poses: np.ndarray, data: Data, fitted: np.ndarray,
+                validated: np.ndarray, splits: int) -> np.ndarray | None:
+    """(n_views,) sum of squared validation residuals (px², both axes) of each
+    view over ``splits`` folds of the views: ``refit(train, train_poses)`` fits
+    the model to the ``fitted`` points of the other views (starting from
+    ``poses``), and the model it returns is held while each validated view's
+    pose is refit to its ``validated`` points. None if a fold cannot be refit
+    (too few corners for the model, say)."""
+    errors = np.zeros(data.n_views)
+    for held in folds(data.n_views, splits):
+        train_views = np.setdiff1d(np.arange(data.n_views), held)
+        try:
+            model = refit(select_views(data, train_views, fitted), poses[train_views])
+            check = select_views(data, held, validated)
+            res = levenberg_marquardt(model, poses[held], check, SolveSettings(max_iterations=100, fix_model=True))
+        except (FloatingPointError, np.linalg.LinAlgError):
+            return None
+        errors[held] = np.bincount(check.view_index, np.sum(res.residuals**2, axis=1), minlength=len(held))
+    return errors if np.all(np.isfinite(errors)) else None
+
+
+def simplest_within_noise(errors: list[np.ndarray | None], counts: np.ndarray, tolerance: float) -> int:
+    """Index of the first (simplest) candidate whose validation error is within
+    the noise of the lowest: its excess over the best, per validated point,
+    is at most ``tolerance`` of the best's or one standard error of that
+    excess, the views taken as independent draws (the one-standard-error
+    rule, paired by view). A small set gives a large standard error and so
+    the simpler model; a consistent gain on every view, a small one."""
+    scores = np.array([np.inf if e is None else e.sum() / counts.sum() for e in errors])
+    best = int(np.argmin(scores))
+    per_view_best = errors[best] * len(counts) / counts.sum()
+    for i, e in enumerate(errors):
+        if e is None:
+            continue
+        excess = e * len(counts) / counts.sum() - per_view_best  # its mean is scores[i] - scores[best]
+        standard_error = np.std(excess, ddof=1) / np.sqrt(len(excess)) if len(excess) > 1 else np.inf
+        if excess.mean() <= max(tolerance * scores[best], standard_error):
+            return i
+    return best

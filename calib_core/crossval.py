@@ -51,19 +51,12 @@ def view_errors(refit: Callable[[Data, np.ndarray], Any], poses: np.ndarray, dat
 
 def simplest_within_noise(errors: list[np.ndarray | None], counts: np.ndarray, tolerance: float) -> int:
     """Index of the first (simplest) candidate whose validation error is within
-    the noise of the lowest: its excess over the best, per validated point,
-    is at most ``tolerance`` of the best's or one standard error of that
-    excess, the views taken as independent draws (the one-standard-error
-    rule, paired by view). A small set gives a large standard error and so
-    the simpler model; a consistent gain on every view, a small one."""
+    the noise of the lowest: at most ``tolerance`` of it or one standard error
+    of it (the views taken as independent draws) above it: the
+    one-standard-error rule. A small or uneven set gives a large standard
+    error and so the simpler model."""
     scores = np.array([np.inf if e is None else e.sum() / counts.sum() for e in errors])
     best = int(np.argmin(scores))
-    per_view_best = errors[best] * len(counts) / counts.sum()
-    for i, e in enumerate(errors):
-        if e is None:
-            continue
-        excess = e * len(counts) / counts.sum() - per_view_best  # its mean is scores[i] - scores[best]
-        standard_error = np.std(excess, ddof=1) / np.sqrt(len(excess)) if len(excess) > 1 else np.inf
-        if excess.mean() <= max(tolerance * scores[best], standard_error):
-            return i
-    return best
+    per_view = errors[best] * len(counts) / counts.sum()  # its mean is scores[best]
+    standard_error = np.std(per_view, ddof=1) / np.sqrt(len(per_view)) if len(per_view) > 1 else np.inf
+    return int(np.flatnonzero(scores <= scores[best] + max(tolerance * scores[best], standard_error))[0])

@@ -198,9 +198,9 @@ def mrcal_side_by_side(kinds, holdout_every: int, real: str, python: str) -> dic
     for name, train, test in side_by_side_sets(kinds, holdout_every, real):
         ours = freecal_bspline(train, test)
         # For contrast, the paper's model as the paper runs it: no model choice,
-        # a fixed 10 x 10 grid and smoothing, on the base its corners need (a
-        # lens past the pinhole's reach, where the default took a Kannala-Brandt
-        # core: equidistant).
+        # a fixed 10 x 10 grid and smoothing, on the base the lens wants (where
+        # the default chose Kannala-Brandt, alone or as the core of a lens past
+        # the pinhole's reach: equidistant).
         paper = dict(core="none", intervals=10, lambda_smooth=1.0,
                      base="equidistant" if ours["core_used"] == "fisheye" else "pinhole")
         res = {"freecal bspline": ours, "freecal paper model": freecal_bspline(train, test, **paper)}

@@ -49,7 +49,8 @@ def fisheye_lens(pc):
 
 def webcam_lens(pc):
     k = np.array([[600.0, 0, 327], [0, 600, 235], [0, 0, 1]])
-    return cv2.projectPoints(pc, np.zeros(3), np.zeros(3), k, np.array([-0.3, 0.12, 0.001, -0.002, -0.02]))[0].reshape(-1, 2)
+    d = np.array([-0.3, 0.12, 0.001, -0.002, -0.02])
+    return cv2.projectPoints(pc, np.zeros(3), np.zeros(3), k, d)[0].reshape(-1, 2)
 
 
 def candidate(cal, model: str) -> dict:
@@ -79,7 +80,8 @@ def test_a_bowed_board_is_not_mistaken_for_lens_distortion():
     alone, which predicts flat boards at least twice as well as the field."""
     train = views_of(webcam_lens, (640, 480), 12, seed=0, sigma=0.1, distance=450, spread=0.2, bend=0.5)
     cal = calibrate(train, "bspline")
-    opencv, paper = candidate(cal, "OpenCV 5-coefficient model alone"), candidate(cal, "field without a core (the paper's model)")
+    opencv = candidate(cal, "OpenCV 5-coefficient model alone")
+    paper = candidate(cal, "field without a core (the paper's model)")
     assert paper["gcv"] < 0.9 * opencv["gcv"] and paper["cv"] > 1.05 * opencv["cv"]
     assert cal.model.field_held
     flat = views_of(webcam_lens, (640, 480), 10, seed=10, sigma=0.0, distance=450, spread=0.2)

@@ -40,8 +40,8 @@ export function viewsTable(views, title) {
   return el("div", { class: "table-wrap scroll-y" }, table);
 }
 
-/** The B-spline method's model choice (core="auto"): each candidate's cross-validated error over views (and GCV of
- * its corners), the simplest within the noise of the lowest kept. Files from before the cross-validation have GCV only. */
+/** The B-spline method's model choice (core="auto"): each candidate's cross-validated error over views
+ * (and GCV of its corners), the simplest within the noise of the lowest kept. Older files have GCV only. */
 export function modelChoiceTable(calibration) {
   const candidates = (calibration.diagnostics || {}).core_candidates || [];
   if (!candidates.length) return "";
@@ -54,9 +54,9 @@ export function modelChoiceTable(calibration) {
       el("th", { scope: "row" }, c.model), el("td", {}, score(c, "cv")), el("td", {}, score(c, "gcv")),
       el("td", {}, c.chosen ? "chosen" : "")))));
   const note = el("p", { class: "muted" }, "Validation error: each view predicted by the model refitted without it " +
-    "(mean squared residual per corner, both axes). The simplest model within 2 % or one standard error of the lowest " +
-    "is kept; — : not validated (too far behind by GCV, or a view split it could not be refit on). A core alone means the field had nothing to add: " +
-    "it is zero and held.");
+    "(mean squared residual per corner, both axes). The simplest model within 2 % or one standard error of the " +
+    "lowest is kept; — : not validated (too far behind by GCV, or a split of the views it could not be refit on). " +
+    "A core alone means the field had nothing to add: it is zero and held.");
   return el("div", { class: "table-wrap" }, table, note);
 }
 

@@ -74,12 +74,31 @@ def zhang_focal(data: Data, image_size: tuple[int, int]) -> tuple[float, float] 
     return None
 
 
+def _onto_axis(directions: np.ndarray) -> np.ndarray:
+    """(V, 3, 3) rotations taking each unit direction (V, 3) onto +Z."""
+    axis = np.cross(directions, [0.0, 0.0, 1.0])
+    sine = np.linalg.norm(axis, axis=1, keepdims=True)
+    angle = np.arctan2(sine, directions[:, 2:])
+    return Rotation.from_rotvec(axis / np.maximum(sine, 1e-12) * angle).as_matrix()
+
+
 def poses_from_rays(model: FisheyeModel, data: Data) -> np.ndarray | None:
     """A pose per view from the homography between the board plane and the
-    model's rays of the observed corners; None if some view cannot be posed."""
+    model's rays of the observed corners; None if some view cannot be posed.
+
+    Each view's rays are first turned about the camera centre so that their
+    mean is the optical axis: a board seen far off axis (a fisheye's edge,
+    up to and past 90°) then projects onto the plane Z = 1 like one seen
+    straight ahead, and the pose is turned back."""
     xn = model.normalised_of_pixel(data.image_points, tol=1e-6)
     rays = camera.ray_of(xn, model.base)
-    usable = np.all(np.isfinite(rays), axis=1) & (rays[:, 2] > 0.2)
+    finite = np.all(np.isfinite(rays), axis=1)
+    mean = np.zeros((data.n_views, 3))
+    np.add.at(mean, data.view_index[finite], rays[finite])
+    norm = np.linalg.norm(mean, axis=1, keepdims=True)
+    turn = _onto_axis(np.where(norm > 0, mean / np.maximum(norm, 1e-300), [0.0, 0.0, 1.0]))
+    rays = np.einsum("nij,nj->ni", turn[data.view_index], np.where(finite[:, None], rays, 0.0))
+    usable = finite & (rays[:, 2] > 0.2)
     order = np.argsort(data.view_index, kind="stable")
     starts = np.searchsorted(data.view_index[order], np.arange(data.n_views + 1))
     homographies, centroids = np.zeros((data.n_views, 3, 3)), np.zeros((data.n_views, 3))
@@ -104,9 +123,10 @@ def poses_from_rays(model: FisheyeModel, data: Data) -> np.ndarray | None:
     flip = np.where(np.linalg.det(u @ vt) < 0, -1.0, 1.0)
     u[:, :, 2] *= flip[:, None]
     rot = u @ vt
+    back = np.transpose(turn, (0, 2, 1))
     poses = np.zeros((data.n_views, 6))
-    poses[:, :3] = Rotation.from_matrix(rot).as_rotvec()
-    poses[:, 3:] = t - np.einsum("kij,kj->ki", rot, centroids)
+    poses[:, :3] = Rotation.from_matrix(back @ rot).as_rotvec()
+    poses[:, 3:] = np.einsum("kij,kj->ki", back, t - np.einsum("kij,kj->ki", rot, centroids))
     return poses
 
 

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from calib_core import calibrate
+from calib_core import calibrate, camera
 from calib_core.board import BoardSpec
 from calib_core.detect import detect_images
 from calib_core.init import folds_inside_image, initialise
@@ -11,6 +11,7 @@ from calib_core.pipeline import to_data
 from calib_core.solve import Data
 
 from .conftest import shared_data
+from .simulated_lenses import around
 
 
 def rays_up_to(angle: float) -> Data:
@@ -45,3 +46,15 @@ def test_a_narrow_real_set_gets_an_initial_camera_without_a_fold():
     assert init.rmse < 0.5
     cal = calibrate(obs, "bspline", core="none")
     assert cal.diagnostics["solver"]["status"] == "converged" and cal.metrics["rmse"] < 0.5
+
+
+def test_boards_seen_up_to_100_degrees_off_axis_are_posed():
+    """A ~200° lens with boards all round it: a view whose corners all lie more
+    than ~80° off axis has no usable homography onto the plane Z = 1; turned
+    to face it first, every view gets a pose and the initial camera fits."""
+    obs = around(16, seed=0, sigma=0.2)
+    data, _, _ = to_data(obs)
+    init = initialise(data, obs.image_size)
+    assert init.poses.shape == (16, 6) and init.rmse < 1.0
+    pc = camera.transform(init.poses, data.view_index, data.object_points)
+    assert np.degrees(np.arctan2(np.hypot(pc[:, 0], pc[:, 1]), pc[:, 2])).max() > 90.0

@@ -48,12 +48,9 @@ def fit_bspline(data: Data, image_size, s: BSplineSettings, progress: Progress) 
     init = initialise(data, image_size)
     _, seen = ideal_samples(init.model, init.poses, data, "pinhole")
     if not seen.all():
-        # Corners past the pinhole's reach: a lens beyond ~170°, where only the
-        # Kannala–Brandt core represents every corner.
-        chosen = fit_field(data, image_size, s, "fisheye", progress)[0]
-        chosen.diagnostics["core_choice"] = f"{int((~seen).sum())} corners lie past the pinhole's reach: Kannala-Brandt core"
-        return chosen
-    return choose_model(data, image_size, s, progress)
+        return choose_model(data, image_size, s, progress, WIDE_CANDIDATES,
+                            f"{int((~seen).sum())} corners lie past the pinhole's reach")
+    return choose_model(data, image_size, s, progress, CANDIDATES)
 
 
 # core="auto": the candidates, simplest first, as (core, field fitted?, label).
@@ -62,15 +59,20 @@ CANDIDATES = (("zhang", False, "OpenCV 5-coefficient model alone"),
               ("rational", False, "rational model alone"),
               ("none", True, "field without a core (the paper's model)"),
               ("rational", True, "field over the rational core"))
+# A lens beyond ~170°, corners past the pinhole's reach: only Kannala-Brandt
+# represents every corner.
+WIDE_CANDIDATES = (("fisheye", False, "Kannala-Brandt model alone"),
+                   ("fisheye", True, "field over the Kannala-Brandt core"))
 
 
-def choose_model(data: Data, image_size, s: BSplineSettings, progress: Progress) -> Fit:
+def choose_model(data: Data, image_size, s: BSplineSettings, progress: Progress, candidates=CANDIDATES,
+                 why: str = "") -> Fit:
     """Fit every candidate, score each by how well it predicts views left out
     of its fit (``_cross_validate``) and keep the simplest within the noise of
     the lowest. A field is worth its freedom only where it predicts new views
     better: over a core that already fits the lens (OpenCV's own model) it can
     only add noise, and the core alone is returned, as a hybrid whose field
-    is zero and held.
+    is zero and held. ``why`` these candidates, if not the usual ones.
 
     Whether a core or a field pays is a property of the lens, not of the
     number of views: on a large set it is decided on DECISION_VIEWS of them,
@@ -81,23 +83,28 @@ def choose_model(data: Data, image_size, s: BSplineSettings, progress: Progress)
     # field with more unknowns than the corners give equations) is out of the
     # running; only if none can is it an error.
     why_not: list[str] = []
-    cores = {core: _try(why_not, fit_core, sample, image_size, core, scaled(progress, lo * share, (lo + 0.03) * share))
-             for core, lo in (("zhang", 0.0), ("fisheye", 0.03), ("rational", 0.06))}
-    rational = cores["rational"]
-    fits = [None if cores[core] is None else _core_alone(cores[core], sample, image_size, s, core)
-            for core, with_field, _ in CANDIDATES if not with_field]
-    fits += [_try(why_not, fit_field, sample, image_size, s, "none", scaled(progress, 0.1 * share, 0.45 * share)),
-             None if rational is None else _try(why_not, fit_field, sample, image_size, s, "rational",
-                                               scaled(progress, 0.45 * share, 0.8 * share), rational)]
+    names = list(dict.fromkeys(core for core, _, _ in candidates if core != "none"))
+    cores = {core: _try(why_not, fit_core, sample, image_size, core,
+                        scaled(progress, 0.1 * i / len(names) * share, 0.1 * (i + 1) / len(names) * share))
+             for i, core in enumerate(names)}
+    fits, n_fields, done = [], sum(with_field for _, with_field, _ in candidates), 0
+    for core, with_field, _ in candidates:
+        if not with_field:
+            fits.append(None if cores[core] is None else _core_alone(cores[core], sample, image_size, s, core))
+            continue
+        part = scaled(progress, (0.1 + 0.7 * done / n_fields) * share, (0.1 + 0.7 * (done + 1) / n_fields) * share)
+        done += 1
+        without_core = core != "none" and cores[core] is None
+        fits.append(None if without_core else _try(why_not, fit_field, sample, image_size, s, core, part, cores.get(core)))
     if all(fit is None for fit in fits):
         raise DataError("no model fits these corners: " + "; ".join(dict.fromkeys(why_not)))
     progress("model choice", 0.8 * share)
     gcv = [np.inf if fit is None else fit[1] for fit in fits]
     # What is cross-validated: a core alone as its own method fitted it.
     fitted = [None if fit is None else (fit[0] if with_field else cores[core])
-              for fit, (core, with_field, _) in zip(fits, CANDIDATES)]
-    cv, k = _cross_validate(sample, fitted, gcv, rational)
-    core, with_field, label = CANDIDATES[k]
+              for fit, (core, with_field, _) in zip(fits, candidates)]
+    cv, k = _cross_validate(sample, fitted, gcv, [cores.get(core) for core, _, _ in candidates])
+    core, with_field, label = candidates[k]
     chosen = fits[k][0]
     if sample is not data:
         if with_field:
@@ -108,27 +115,29 @@ def choose_model(data: Data, image_size, s: BSplineSettings, progress: Progress)
 
     def scores(values) -> str:
         return ", ".join((f"{v:.4f} px²" if np.isfinite(v) else "-") + f" for the {what}"
-                         for (_, _, what), v in zip(CANDIDATES, values))
+                         for (_, _, what), v in zip(candidates, values))
 
     chosen.diagnostics["core_choice"] = (
-        f"{label}: " + (f"validation error over {min(CV_SPLITS, sample.n_views)} splits of the views {scores(cv)}; "
-                        f"the simplest within {100 * CV_TOLERANCE:.0f} % or one standard error of the lowest is kept"
-                        if by_cv else
-                        f"GCV of the corners {scores(gcv)} (no candidate could be cross-validated over the views); "
-                        f"the simplest within {100 * GCV_TOLERANCE:.0f} % of the lowest is kept")
+        f"{label}: " + (f"{why}; " if why else "")
+        + (f"validation error over {min(CV_SPLITS, sample.n_views)} splits of the views {scores(cv)}; "
+           f"the simplest within {100 * CV_TOLERANCE:.0f} % or one standard error of the lowest is kept"
+           if by_cv else
+           f"GCV of the corners {scores(gcv)} (no candidate could be cross-validated over the views); "
+           f"the simplest within {100 * GCV_TOLERANCE:.0f} % of the lowest is kept")
         + ("" if sample is data else f" (decided on {sample.n_views} of the {data.n_views} views)"))
     chosen.diagnostics["core_candidates"] = [
         {"model": what, "cv": c if np.isfinite(c) else None, "gcv": g if np.isfinite(g) else None, "chosen": i == k}
-        for i, ((_, _, what), c, g) in enumerate(zip(CANDIDATES, cv, gcv))]
+        for i, ((_, _, what), c, g) in enumerate(zip(candidates, cv, gcv))]
     return chosen
 
 
-def _cross_validate(sample: Data, fitted: list[Fit | None], gcv: list[float], rational: Fit | None):
+def _cross_validate(sample: Data, fitted: list[Fit | None], gcv: list[float], cores: list[Fit | None]):
     """(validation error per candidate (px² per corner, inf when not
     validated), index chosen). Each candidate is refit without each of
     CV_SPLITS interleaved groups of views and predicts them (``crossval``),
     on the corners every candidate could use; the simplest within the noise
-    of the lowest is chosen (``crossval.simplest_within_noise``).
+    of the lowest is chosen (``crossval.simplest_within_noise``). ``cores``:
+    each candidate's core fitted alone (None for the paper's field).
 
     GCV of the corners cannot see what matters here: it scores prediction at
     the views already fitted, and a field there also fits what the views do
@@ -142,19 +151,20 @@ def _cross_validate(sample: Data, fitted: list[Fit | None], gcv: list[float], ra
     kept = np.logical_and.reduce([~f.excluded for f in fitted if f is not None])
     counts = np.bincount(sample.view_index[kept], minlength=sample.n_views)
     splits = min(CV_SPLITS, sample.n_views)
-    errors = [view_errors(_fold_refit(f, rational), f.result.poses, sample, ~f.excluded, kept, splits)
-              if f is not None and g <= CV_SCREEN * min(gcv) else None for f, g in zip(fitted, gcv)]
+    errors = [view_errors(_fold_refit(f, core), f.result.poses, sample, ~f.excluded, kept, splits)
+              if f is not None and g <= CV_SCREEN * min(gcv) else None for f, g, core in zip(fitted, gcv, cores)]
     cv = [np.inf if e is None else float(e.sum() / counts.sum()) for e in errors]
     if any(np.isfinite(cv)):
         return cv, simplest_within_noise(errors, counts, CV_TOLERANCE)
     return cv, next(i for i, g in enumerate(gcv) if g <= min(gcv) * (1 + GCV_TOLERANCE))
 
 
-def _fold_refit(fit: Fit, rational: Fit | None):
+def _fold_refit(fit: Fit, core: Fit | None):
     """How a fit is refit to one split's views: by the solver that fitted it,
     from the full fit's camera and poses. A field over a core refits the core
-    alone first, as the method does: its joint fit holds the core's
-    coefficients, and held as fitted to every view they would flatter it."""
+    alone first (``core``, as fitted alone), as the method does: its joint
+    fit holds the core's coefficients, and held as fitted to every view they
+    would flatter it."""
     def settings(f: Fit) -> SolveSettings:
         return dataclasses.replace(f.solve_settings or SolveSettings(), max_iterations=CV_MAX_ITERATIONS)
 
@@ -162,9 +172,9 @@ def _fold_refit(fit: Fit, rational: Fit | None):
 
     def refit(train: Data, poses: np.ndarray):
         if isinstance(model, HybridModel):
-            core = levenberg_marquardt(rational.result.model, poses, train, settings(rational))
-            start = HybridModel(core.model, model.field, model.lambda_reg, model.lambda_smooth, model.gauge_point)
-            return levenberg_marquardt(start, core.poses, train, settings(fit)).model
+            alone = levenberg_marquardt(core.result.model, poses, train, settings(core))
+            start = HybridModel(alone.model, model.field, model.lambda_reg, model.lambda_smooth, model.gauge_point)
+            return levenberg_marquardt(start, alone.poses, train, settings(fit)).model
         return levenberg_marquardt(model, poses, train, settings(fit)).model
     return refit
 

@@ -1,0 +1,76 @@
+"""Lenses and boards simulated with OpenCV's own projections (or a plain
+Kannala-Brandt formula past 180°), independent of freecal's synthetic
+protocol: observations as ``freecal.observations/1`` would carry them."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from calib_core.observations import Observations
+
+BOARD = np.array([[c * 30.0, r * 30.0, 0.0] for r in range(8) for c in range(11)])
+
+
+def views_of(project, size, n, seed, sigma, distance, spread, bend=0.0):
+    """Observations of BOARD seen ``n`` times (tilted up to 40°, shifted up to
+    ``spread`` of the distance; the corners inside the image, at least 40 %
+    of the board, as a board partly out of the frame is seen); ``bend`` (mm,
+    a normal deviate's scale per view) bows the board out of its plane while
+    its object points still say flat, as a printed board on card does."""
+    rng = np.random.default_rng(seed)
+    centre = BOARD[:, :2].mean(axis=0)
+    q = (BOARD[:, :2] - centre) / np.abs(BOARD[:, :2] - centre).max()
+    views = []
+    while len(views) < n:
+        rot = cv2.Rodrigues(np.radians(rng.uniform(-40, 40, 3)) * [1, 1, 0.5])[0]
+        shift = np.r_[rng.uniform(-spread, spread, 2) * distance, distance * rng.uniform(0.8, 1.2)]
+        bent = BOARD.copy()
+        bent[:, 2] = rng.normal(0, bend) * np.sum(q**2, axis=1) + rng.normal(0, bend) * q[:, 0] * q[:, 1]
+        pc = (bent - [*centre, 0.0]) @ rot.T + shift
+        pixels = project(pc)
+        inside = np.all((pixels >= 0) & (pixels <= np.array(size) - 1), axis=1) & (pc[:, 2] > 0)
+        if inside.mean() >= 0.4:
+            seen = pixels[inside] + rng.normal(0, sigma, (inside.sum(), 2))
+            views.append({"name": f"v{len(views)}", "object_points": BOARD[inside].tolist(),
+                          "image_points": seen.tolist(), "ids": np.flatnonzero(inside).tolist()})
+    return Observations.from_json({"format": "freecal.observations/1", "image_size": list(size), "views": views})
+
+
+def fisheye_lens(pc):
+    k = np.array([[330.0, 0, 645], [0, 331, 508], [0, 0, 1]])
+    d = np.array([0.02, -0.01, 0.003, -0.0005])
+    return cv2.fisheye.projectPoints(pc.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), k, d)[0].reshape(-1, 2)
+
+
+def webcam_lens(pc):
+    k = np.array([[600.0, 0, 327], [0, 600, 235], [0, 0, 1]])
+    d = np.array([-0.3, 0.12, 0.001, -0.002, -0.02])
+    return cv2.projectPoints(pc, np.zeros(3), np.zeros(3), k, d)[0].reshape(-1, 2)
+
+
+def beyond_180(pc):
+    """A Kannala-Brandt lens of ~200° on 1280 x 1024 (θ from the optical axis, any sign of Z)."""
+    k, d = (300.0, 301.0, 641.0, 509.0), (0.01, -0.005, 0.001, -0.0002)
+    rho = np.hypot(pc[:, 0], pc[:, 1])
+    theta = np.arctan2(rho, pc[:, 2])
+    scale = theta * (1 + d[0] * theta**2 + d[1] * theta**4 + d[2] * theta**6 + d[3] * theta**8) / rho
+    return np.column_stack([k[0] * scale * pc[:, 0] + k[2], k[1] * scale * pc[:, 1] + k[3]])
+
+
+def around(n, seed, sigma):
+    """Views of BOARD facing the camera from up to 100° off its axis, 250-400 mm away."""
+    rng = np.random.default_rng(seed)
+    centre, views = BOARD[:, :2].mean(axis=0), []
+    while len(views) < n:
+        azimuth, off_axis = rng.uniform(0, 2 * np.pi), np.radians(rng.uniform(0, 100))
+        towards = np.array([np.sin(off_axis) * np.cos(azimuth), np.sin(off_axis) * np.sin(azimuth), np.cos(off_axis)])
+        x = np.cross([0.0, 1.0, 0.0], -towards)
+        x /= np.linalg.norm(x)
+        rot = np.column_stack([x, np.cross(-towards, x), -towards]) @ cv2.Rodrigues(np.radians(rng.uniform(-30, 30, 3)))[0]
+        pixels = beyond_180((BOARD - [*centre, 0.0]) @ rot.T + towards * rng.uniform(250, 400))
+        inside = np.all((pixels >= 0) & (pixels <= [1279, 1023]), axis=1)
+        if inside.mean() >= 0.4:
+            seen = pixels[inside] + rng.normal(0, sigma, (inside.sum(), 2))
+            views.append({"name": f"v{len(views)}", "object_points": BOARD[inside].tolist(),
+                          "image_points": seen.tolist(), "ids": np.flatnonzero(inside).tolist()})
+    return Observations.from_json({"format": "freecal.observations/1", "image_size": [1280, 1024], "views": views})

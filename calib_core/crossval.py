@@ -12,20 +12,12 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .solve import Data, SolveSettings, levenberg_marquardt
+from .solve import Data, SolveSettings, levenberg_marquardt, select_views
 
 
 def folds(n_views: int, splits: int) -> list[np.ndarray]:
     """View indices validated in each split: interleaved, each view exactly once."""
     return [np.arange(k, n_views, splits) for k in range(splits)]
-
-
-def select_views(data: Data, views: np.ndarray, points: np.ndarray) -> Data:
-    """The ``points`` (bool mask) of ``views``, renumbered 0..len(views)-1 in that order."""
-    renumber = np.full(data.n_views, -1)
-    renumber[views] = np.arange(len(views))
-    keep = points & (renumber[data.view_index] >= 0)
-    return Data(data.object_points[keep], data.image_points[keep], renumber[data.view_index[keep]], len(views))
 
 
 def view_errors(refit: Callable[[Data, np.ndarray], Any], poses: np.ndarray, data: Data, fitted: np.ndarray,

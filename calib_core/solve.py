@@ -45,13 +45,20 @@ class Data:
         return len(self.image_points)
 
 
-def spread_views(data: Data, max_views: int) -> Data:
-    """At most ``max_views`` of the views, evenly spread over the set, renumbered."""
-    views = np.unique(np.linspace(0, data.n_views - 1, min(max_views, data.n_views)).round().astype(int))
+def select_views(data: Data, views: np.ndarray, points: np.ndarray | None = None) -> Data:
+    """The ``points`` (bool mask; default all) of ``views``, renumbered 0..len(views)-1 in that order."""
     renumber = np.full(data.n_views, -1)
     renumber[views] = np.arange(len(views))
     keep = renumber[data.view_index] >= 0
+    if points is not None:
+        keep &= points
     return Data(data.object_points[keep], data.image_points[keep], renumber[data.view_index[keep]], len(views))
+
+
+def spread_views(data: Data, max_views: int) -> Data:
+    """At most ``max_views`` of the views, evenly spread over the set, renumbered."""
+    spread = np.linspace(0, data.n_views - 1, min(max_views, data.n_views)).round().astype(int)
+    return select_views(data, np.unique(spread))
 
 
 @dataclass

@@ -40,7 +40,7 @@ def _fmt(v) -> str:
 
 def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks quality", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--kinds", default=",".join(synth.KINDS))
+    ap.add_argument("--kinds", default=",".join(synth.PAPER_KINDS), help=f"any of {', '.join(synth.KINDS)}")
     ap.add_argument("--on", default="train,holdout", help="which boards: train (noisy), holdout (noise-free)")
     ap.add_argument("--methods", default=",".join(METHODS))
     ap.add_argument("--sigma", type=float, default=0.3)

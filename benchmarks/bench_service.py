@@ -4,7 +4,7 @@
 
 For each worker count: a fresh data directory, ``freecal serve --workers 0``
 plus N ``freecal worker`` processes, the same synthetic sets
-(``calib_core.synth.generate``, one per lens kind) and the same job settings;
+(``calib_core.synth.generate``, one per lens of the paper) and the same job settings;
 reports jobs per minute from the first submission to the last completion.
 Meanwhile ``--readers`` clients poll ``GET /api/jobs/{id}`` at ``--rate``
 requests per second in all (a bounded load: it must not starve the workers of
@@ -83,7 +83,7 @@ def run_once(n_workers: int, n_jobs: int, readers: int, rate: float, env: dict[s
                   for k in range(n_workers)]
         wait(lambda: client.get("/api/health").json()["workers"] == n_workers, 60, f"{n_workers} workers")
         set_ids = []
-        for kind in synth.KINDS:
+        for kind in synth.PAPER_KINDS:
             doc = synth.generate(kind, 0.3, 0).train.to_json()
             r = client.post("/api/sets", files={"files": (f"{kind}.json", json.dumps(doc), "application/json")})
             set_ids.append(r.json()["id"])
@@ -162,7 +162,7 @@ def main(argv: list[str]) -> int:
             rows.append((r["workers"], r["jobs"], r["seconds"], r["jobs_per_min"], r["reads_per_s"],
                          r["p50_ms"], r["p95_ms"], r["p99_ms"]))
         print(f"freecal service on the {args.queue} queue: {args.jobs} bspline jobs "
-              f"(uniform 8x8 knots, synthetic {', '.join(synth.KINDS)}), {args.readers} status readers "
+              f"(uniform 8x8 knots, synthetic {', '.join(synth.PAPER_KINDS)}), {args.readers} status readers "
               f"at {args.rate:g} reads/s, {args.blas_threads} BLAS thread(s) per worker, "
               f"{os.cpu_count()} cores\n")
         table(["workers", "jobs", "time [s]", "jobs/min", "status reads/s", "p50 [ms]", "p95 [ms]", "p99 [ms]"], rows)

@@ -1,4 +1,4 @@
-"""freecal synth --kind radial|fisheye|asymmetric --sigma 0.3 --seed 0 [--images] -o DIR"""
+"""freecal synth --kind radial|fisheye|asymmetric|freeform|decentred --sigma 0.3 --seed 0 [--images] -o DIR"""
 from __future__ import annotations
 
 import sys

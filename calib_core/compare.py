@@ -8,7 +8,7 @@
   over the views (each view validated once; the model is held and only the
   validated views' poses are refit, as in ``evaluate.py``), and, when given,
   a separate hold-out set;
-- which to trust: the lowest cross-validated error wins, and we test whether
+- which to trust: ``method="auto"``'s rule (``choice.py``), and we test whether
   the winner's validation residuals still show spatial structure (neighbouring
   corners' residuals correlated beyond what shuffling them gives).
 
@@ -23,6 +23,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import metrics, quality
+from .choice import Candidate, choose
 from .calibration import Calibration
 from .crossval import folds
 from .errors import CalibError, DataError, SettingsError
@@ -33,6 +34,9 @@ from .pipeline import MIN_VIEWS, calibrate, to_data
 from .solve import SolveSettings, levenberg_marquardt
 
 DEFAULT_METHODS = ("zhang", "rational", "fisheye", "mls", "tps", "bspline")
+# The verdict's order of simplicity: parametric models by their number of
+# coefficients, then the fields.
+SIMPLEST_FIRST = ("zhang", "fisheye", "rational", "bspline", "mls", "tps")
 STRUCTURE_P_VALUE = 0.01  # below this, the residuals are called spatially structured
 N_PERMUTATIONS = 200
 
@@ -185,16 +189,29 @@ def _quality(fn: Callable[..., dict[str, Any]], *args) -> dict[str, Any]:
 
 
 def _verdict(results: dict[str, dict], cv_residuals: dict) -> tuple[str | None, dict[str, Any]]:
+    """The method to trust. With cross-validation, ``method="auto"``'s rule
+    (``choice.choose``): the simplest method (``SIMPLEST_FIRST``) within the
+    noise of the lowest validation error; otherwise the lowest hold-out or
+    training error."""
     ok = {n: r for n, r in results.items() if "error" not in r}
     if not ok:
         return None, {"reason": "every method failed on these corners"}
-    key = next(k for k in ("cv_validation_rmse", "holdout_rmse", "rmse") if all(k in r for r in ok.values()))
-    # Ties go to the simpler method (DEFAULT_METHODS lists them simplest
-    # first): the B-spline method returns zhang's very calibration when the
-    # lens is OpenCV's own, and the verdict must then name the textbook model.
-    simplicity = {n: i for i, n in enumerate(DEFAULT_METHODS)}
-    best = min(ok, key=lambda n: (ok[n][key], simplicity.get(n, len(simplicity))))
-    detail: dict[str, Any] = {"by": key, "value": ok[best][key]}
+    order = sorted(ok, key=lambda n: SIMPLEST_FIRST.index(n) if n in SIMPLEST_FIRST else len(SIMPLEST_FIRST))
+    detail: dict[str, Any]
+    if all(n in cv_residuals for n in order):
+        candidates, counts = [], None
+        for n in order:
+            r, _, view = cv_residuals[n]
+            ids, index = np.unique(view, return_inverse=True)
+            candidates.append(Candidate(n, n, np.bincount(index, np.sum(r * r, axis=1), minlength=len(ids))))
+            counts = np.bincount(index, minlength=len(ids))
+        choice = choose(candidates, counts, how="validation error per axis over the folds of the views")
+        best = choice.name
+        detail = {"by": "cv_validation_rmse", "value": ok[best]["cv_validation_rmse"], "model_choice": choice.to_json()}
+    else:
+        key = next(k for k in ("holdout_rmse", "rmse") if all(k in r for r in ok.values()))
+        best = min(order, key=lambda n: ok[n][key])
+        detail = {"by": key, "value": ok[best][key]}
     if best in cv_residuals:
         r, obj, view = cv_residuals[best]
         s = neighbour_correlation(r, obj, view)

@@ -39,16 +39,3 @@ def view_errors(refit: Callable[[Data, np.ndarray], Any], poses: np.ndarray, dat
             return None
         errors[held] = np.bincount(check.view_index, np.sum(res.residuals**2, axis=1), minlength=len(held))
     return errors if np.all(np.isfinite(errors)) else None
-
-
-def simplest_within_noise(errors: list[np.ndarray | None], counts: np.ndarray, tolerance: float) -> int:
-    """Index of the first (simplest) candidate whose validation error is within
-    the noise of the lowest: at most ``tolerance`` of it or one standard error
-    of it (the views taken as independent draws) above it: the
-    one-standard-error rule. A small or uneven set gives a large standard
-    error and so the simpler model."""
-    scores = np.array([np.inf if e is None else e.sum() / counts.sum() for e in errors])
-    best = int(np.argmin(scores))
-    per_view = errors[best] * len(counts) / counts.sum()  # its mean is scores[best]
-    standard_error = np.std(per_view, ddof=1) / np.sqrt(len(per_view)) if len(per_view) > 1 else np.inf
-    return int(np.flatnonzero(scores <= scores[best] + max(tolerance * scores[best], standard_error))[0])

@@ -59,7 +59,7 @@ def robust_outliers(res: np.ndarray, threshold: float) -> np.ndarray:
 
 def calibrate(
     observations: Observations,
-    method: str = "bspline",
+    method: str = "auto",
     progress: Progress | None = None,
     outlier_sigma: float = 5.0,
     **settings: Any,

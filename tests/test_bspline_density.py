@@ -1,5 +1,5 @@
-"""Knot density from the data: the GCV search over knot grids and KDE
-bandwidth factors, its time budget, and how it is reported."""
+"""Knot density from the data: the search over knot grids and KDE bandwidth
+factors by validation over views, where it stops, and how it is reported."""
 import json
 
 import pytest
@@ -26,7 +26,13 @@ def test_auto_bandwidth_picks_a_factor_and_records_the_curve(searched):
     assert chosen in AUTO_BANDWIDTH_FACTORS
     curve = searched.diagnostics["smoothing_curve"]
     assert {c["bandwidth_factor"] for c in curve} == set(AUTO_BANDWIDTH_FACTORS)
-    assert all("gcv" in c and "skipped" not in c for c in curve)
+    # Each factor scores its two coarsest grids at least; finer ones stop once
+    # two in a row predicted no better than the best before them.
+    for factor in AUTO_BANDWIDTH_FACTORS:
+        entries = [c for c in curve if c["bandwidth_factor"] == factor]
+        assert all("cv" in c for c in entries[:2])
+        assert all(("cv" in c) != ("skipped" in c) for c in entries)
+        assert all(c["skipped"] == "2 coarser grids predicted no better" for c in entries if "skipped" in c)
     assert [searched.settings["intervals_used"], chosen] in [[c["intervals"], c["bandwidth_factor"]] for c in curve]
 
 
@@ -39,8 +45,8 @@ def test_a_budget_that_is_not_reached_changes_nothing(searched):
 def test_the_time_budget_stops_the_search_and_says_so():
     cal = auto_bandwidth(time_budget=1e-9)
     first, *rest = cal.diagnostics["smoothing_curve"]
-    assert "gcv" in first  # the first candidate always runs
-    assert rest and all(c["skipped"] == "time budget" and "gcv" not in c for c in rest)
+    assert "cv" in first  # the first candidate always runs
+    assert rest and all(c["skipped"] == "time budget" and "cv" not in c for c in rest)
     assert [cal.settings["intervals_used"], cal.settings["bandwidth_factor_used"]] == [first["intervals"], 1.0]
 
 
@@ -58,10 +64,10 @@ def test_bad_bandwidth_or_budget_is_named(settings, message):
 def test_cli_takes_auto_bandwidth_and_prints_the_curve(tmp_path, capsys):
     obs = tmp_path / "train.json"
     obs.write_text(json.dumps(synthetic("asymmetric").train.to_json()))
-    assert main(["calibrate", str(obs), "-q", "--core", "none", "--bandwidth-factor", "auto",
+    assert main(["calibrate", str(obs), "-q", "--method", "bspline", "--core", "none", "--bandwidth-factor", "auto",
                  "--time-budget", "1e-9"]) == 0
     printed = capsys.readouterr().out
     assert "bandwidth factor" in printed and "skipped (time budget)" in printed
     with pytest.raises(SystemExit) as bad:  # argparse rejects it before anything runs
-        main(["calibrate", str(obs), "-q", "--bandwidth-factor", "wide"])
+        main(["calibrate", str(obs), "-q", "--method", "bspline", "--bandwidth-factor", "wide"])
     assert bad.value.code == 2 and "--bandwidth-factor: expected a number or auto" in capsys.readouterr().err

@@ -10,7 +10,7 @@ def test_synth_calibrate_evaluate(tmp_path, capsys):
     for name in ("train.json", "holdout.json", "truth.json"):
         assert (out / name).is_file()
     cal = tmp_path / "cal.json"
-    assert main(["calibrate", str(out / "train.json"), "-o", str(cal), "-q", "--intervals", "8",
+    assert main(["calibrate", str(out / "train.json"), "-o", str(cal), "-q", "--method", "bspline", "--intervals", "8",
                  "--lambda-smooth", "100"]) == 0
     printed = capsys.readouterr().out
     assert "overall" in printed and "rmse [px]" in printed
@@ -32,16 +32,21 @@ def test_user_errors_exit_2_with_one_line(tmp_path, capsys):
 
 
 def test_calibrate_summary_and_demo_say_which_model_was_chosen(tmp_path, capsys):
-    """OpenCV's own lens: the summary's GCV table marks OpenCV's model alone;
-    the demo names the choice per lens, the field on the asymmetric wave."""
+    """OpenCV's own lens: the summary names the model chosen in words and
+    marks it in the score table; the demo names the choice per lens, the
+    field on the asymmetric wave. B-spline flags without --method bspline
+    are an error that says so."""
     out = tmp_path / "set"
     assert main(["synth", "--kind", "radial", "-o", str(out)]) == 0
     capsys.readouterr()
     assert main(["calibrate", str(out / "train.json"), "-q"]) == 0
     printed = capsys.readouterr().out
-    chosen = [line for line in printed.splitlines() if line.rstrip().endswith("*") and "alone" in line]
-    assert len(chosen) == 1 and "OpenCV 5-coefficient model alone" in chosen[0]
+    assert "model chosen: OpenCV 5-coefficient model" in printed and "one standard error" in printed
+    chosen = [line for line in printed.splitlines() if line.rstrip().endswith("*")]
+    assert len(chosen) == 1 and "OpenCV 5-coefficient model" in chosen[0]
+    assert main(["calibrate", str(out / "train.json"), "-q", "--intervals", "8"]) == 2
+    assert "add --method bspline" in capsys.readouterr().err
     assert main(["demo"]) == 0
     rows = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()
             if line.split() and line.split()[0] in ("radial", "fisheye", "asymmetric")}
-    assert "OpenCV 5-coefficient model alone" in rows["radial"] and "field" in rows["asymmetric"]
+    assert "OpenCV 5-coefficient model" in rows["radial"] and "B-spline field" in rows["asymmetric"]

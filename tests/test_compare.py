@@ -9,6 +9,7 @@ from calib_core import synth
 from calib_core.compare import compare, neighbour_correlation
 from calib_core.errors import DataError, SettingsError
 from calib_core.observations import Observations
+from calib_core.pipeline import calibrate
 
 
 @pytest.fixture(scope="module")
@@ -74,13 +75,15 @@ def test_cli_prints_one_json_object(tmp_path, small, capsys):
     assert "Verdict: zhang" in text and "Cross-validation" in text
 
 
-def test_on_opencvs_own_lens_the_bspline_method_is_zhang_and_the_verdict_names_zhang(small):
-    """The radial lens is OpenCV's model: a field can only fit noise, so the
-    B-spline method keeps that model alone; tied with zhang, below TPS (which
-    adds a smoothed field to it), and the tie goes to the textbook model
-    whatever order the methods were asked in."""
-    result = compare(small.train, ["bspline", "tps", "zhang"], splits=3)
+def test_on_opencvs_own_lens_the_default_and_the_verdict_both_name_zhang(small):
+    """The radial lens is OpenCV's model: a field can only fit noise. The
+    default (auto) returns OpenCV's model, and compare's verdict, by the same
+    rule, names zhang over TPS (which adds a smoothed field to it) and over
+    the paper's field, whatever order the methods were asked in."""
+    result = compare(small.train, ["bspline", "auto", "tps", "zhang"], splits=3)
     cv = {m: r["cv_validation_rmse"] for m, r in result["methods"].items()}
-    assert cv["bspline"] == pytest.approx(cv["zhang"], rel=1e-9)
-    assert cv["bspline"] < cv["tps"]
+    assert cv["zhang"] < cv["tps"] and cv["zhang"] < cv["bspline"]
     assert result["verdict"] == "zhang"
+    assert calibrate(small.train).settings["chosen"] == "zhang"
+    choice = result["verdict_detail"]["model_choice"]
+    assert choice["chosen"] == "zhang" and "one-standard-error rule" in choice["rule"]

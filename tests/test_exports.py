@@ -19,8 +19,8 @@ from .conftest import synthetic
 
 
 @functools.lru_cache(maxsize=None)
-def cal_of(kind: str, method: str):
-    return calibrate(synthetic(kind).train, method)
+def cal_of(kind: str, method: str, settings: tuple = ()):
+    return calibrate(synthetic(kind).train, method, **dict(settings))
 
 
 def check_points(cal, fit, project) -> None:
@@ -48,11 +48,11 @@ def test_parametric_calibration_exports_exactly():
     assert opencv_yaml(cal_of("asymmetric", "bspline")) is None  # not parametric: use a lean fit
 
 
-def test_a_bspline_result_without_a_field_exports_its_core_exactly():
-    """On OpenCV's own lens the B-spline method keeps OpenCV's model alone (a
-    hybrid whose field is zero and held): its YAML is that model, exactly."""
-    cal = cal_of("radial", "bspline")
-    assert cal.model.kind == "hybrid" and cal.model.field_held
+def test_the_default_on_opencvs_lens_exports_its_model_exactly():
+    """On OpenCV's own lens the default keeps OpenCV's model, as that model:
+    its YAML is that model, exactly."""
+    cal = cal_of("radial", "auto")
+    assert cal.model.kind == "opencv"
     doc = read_opencv_yaml(opencv_yaml(cal))
     assert doc["distortion_model"] == "opencv" and len(doc["distortion_coefficients"]) == 5
     u, v, rays, ok = sample_grid(cal)
@@ -62,7 +62,7 @@ def test_a_bspline_result_without_a_field_exports_its_core_exactly():
 
 @pytest.mark.parametrize("name", ["opencv8", "kb4"])
 def test_lean_fit_opencv_yaml_projects_within_its_fit_error(name):
-    cal = cal_of("fisheye", "bspline")
+    cal = cal_of("fisheye", "bspline", (("core", "fisheye"),))
     fit = fit_lean(cal, name)
     assert fit.error_map.shape == (len(fit.v), len(fit.u)) and fit.rms < 5.0
     doc = read_opencv_yaml(lean_yaml(fit, cal))

@@ -108,7 +108,7 @@ def test_database_full_rolls_back_the_set(app, monkeypatch):
 def test_job_whose_results_cannot_be_written_fails_with_the_reason(app, monkeypatch):
     from backend.queue.execute import run_claimed
 
-    r = app.post("/api/jobs", json={"observations": OBS, "settings": QUICK})
+    r = app.post("/api/jobs", json={"observations": OBS, "method": "bspline", "settings": QUICK})
     job_id = r.json()["id"]
     fail_writes(monkeypatch, errno.ENOSPC)
     ctx = app.app.state.ctx
@@ -154,7 +154,7 @@ def test_redis_goes_away_and_comes_back(tmp_path):
         redis.stop()
         health = svc.client.get("/api/health").json()
         assert health["queue_available"] is False and "unreachable" in health["queue_error"]
-        r = svc.client.post("/api/jobs", json={"set_id": set_id, "settings": QUICK})
+        r = svc.client.post("/api/jobs", json={"set_id": set_id, "method": "bspline", "settings": QUICK})
         assert r.status_code == 503 and "check that it is running and retry" in r.json()["detail"]
         assert svc.client.get(f"/api/sets/{set_id}").json()["state"] == "ready"  # reads still work
         jobs_before = svc.client.get("/api/jobs").json()["count"]

@@ -257,16 +257,16 @@ def failed_with(svc: Service, job_id: str, *words: str) -> None:
 def test_too_few_views(service):
     doc = obs_doc()
     doc["views"] = doc["views"][:2]
-    r = service.client.post("/api/jobs", json={"observations": doc, "settings": QUICK})
+    r = service.client.post("/api/jobs", json={"observations": doc, "method": "bspline", "settings": QUICK})
     failed_with(service, r.json()["id"], "at least 3 views")
 
 
 def test_too_few_corners_for_the_knot_grid(service):
-    # The paper's model asked for (core "none"): the field alone must carry the corners. (With
-    # core "auto" a field they cannot carry drops out of the model choice: tests/test_bspline_method.py.)
+    # The paper's model asked for: the field alone must carry the corners. (With method "auto" a
+    # field they cannot carry drops out of the model choice: tests/test_bspline_method.py.)
     doc = obs_doc()
     doc["views"] = doc["views"][:3]
-    r = service.client.post("/api/jobs", json={"observations": doc,
+    r = service.client.post("/api/jobs", json={"observations": doc, "method": "bspline",
                                                "settings": {**QUICK, "intervals": [30, 30], "core": "none"}})
     failed_with(service, r.json()["id"], "equations for", "fewer knot intervals")
 
@@ -284,7 +284,7 @@ def fronto_parallel_views() -> dict:
 
 
 def test_all_views_fronto_parallel(service):
-    r = service.client.post("/api/jobs", json={"observations": fronto_parallel_views(), "settings": QUICK})
+    r = service.client.post("/api/jobs", json={"observations": fronto_parallel_views(), "method": "bspline", "settings": QUICK})
     failed_with(service, r.json()["id"], "fronto-parallel", "tilted")
 
 

@@ -1,5 +1,5 @@
-"""The B-spline method's model choice (core="auto") judges candidates by the
-views they have not seen, on lenses and boards simulated independently of
+"""The default method's model choice (``method="auto"``) judges candidates by
+the views they have not seen, on lenses and boards simulated independently of
 freecal's synthetic protocol (``simulated_lenses``)."""
 from __future__ import annotations
 
@@ -7,28 +7,25 @@ import numpy as np
 import pytest
 
 from calib_core.compare import validation_residuals
-from calib_core.crossval import simplest_within_noise
+from calib_core.choice import Candidate, choose
 from calib_core.metrics import rmse
 from calib_core.pipeline import calibrate
 
 from .simulated_lenses import around, fisheye_lens, views_of, webcam_lens
 
 
-def candidate(cal, model: str) -> dict:
-    return next(c for c in cal.diagnostics["core_candidates"] if c["model"] == model)
+def candidate(cal, name: str) -> dict:
+    return next(c for c in cal.diagnostics["model_choice"]["candidates"] if c["name"] == name)
 
 
 def test_a_kannala_brandt_fisheye_gets_kannala_brandt_not_a_model_that_only_fits_its_corners():
-    """cv2.fisheye's lens: the rational model fits the corners as well (GCV
-    within 2 %) but, as its own method calibrates it, misses new views by
-    most of a pixel; the choice keeps Kannala-Brandt, the simpler of the two
-    that predict the views left out equally well, and new views land within
-    hundredths of a pixel."""
+    """cv2.fisheye's lens: the rational model fits the corners as well but,
+    as its own method calibrates it, misses new views by most of a pixel; the
+    choice keeps Kannala-Brandt, and new views land within hundredths of a
+    pixel."""
     train = views_of(fisheye_lens, (1280, 1024), 12, seed=0, sigma=0.2, distance=260, spread=1.6)
-    cal = calibrate(train, "bspline")
-    assert cal.settings["core_used"] == "fisheye" and cal.model.field_held
-    kb, rational = candidate(cal, "Kannala-Brandt model alone"), candidate(cal, "rational model alone")
-    assert abs(rational["gcv"] / kb["gcv"] - 1) < 0.02
+    cal = calibrate(train, "auto")
+    assert cal.settings["chosen"] == "fisheye" and cal.model.kind == "fisheye"
     holdout = views_of(fisheye_lens, (1280, 1024), 10, seed=10, sigma=0.0, distance=260, spread=1.6)
     ours = rmse(validation_residuals(cal, holdout)[0])
     assert ours < 0.05 and ours < rmse(validation_residuals(calibrate(train, "rational"), holdout)[0]) / 3
@@ -39,24 +36,24 @@ def test_past_180_degrees_a_kannala_brandt_lens_gets_no_field_it_does_not_need()
     field over it only fitted the noise (3.5-5x Kannala-Brandt's hold-out error
     when it was taken unasked): the choice keeps Kannala-Brandt alone."""
     train = around(16, seed=0, sigma=0.2)
-    cal = calibrate(train, "bspline")
-    assert "past the pinhole's reach" in cal.diagnostics["core_choice"]
-    assert cal.settings["core_used"] == "fisheye" and cal.model.field_held
+    cal = calibrate(train, "auto")
+    assert "past the pinhole's reach" in cal.diagnostics["model_choice"]["how"]
+    assert cal.settings["chosen"] == "fisheye" and cal.model.kind == "fisheye"
     holdout = around(12, seed=1, sigma=0.0)
     assert rmse(validation_residuals(cal, holdout)[0]) < 0.05
 
 
 def test_a_bowed_board_is_not_mistaken_for_lens_distortion():
     """A board bowed by half a millimetre or so, differently in each view: a
-    field fits the bow of the views it has seen (lower GCV of the corners than
-    OpenCV's model) but predicts new views worse; the choice keeps a core
-    alone, which predicts flat boards at least twice as well as the field."""
+    field fits the bow of the views it has seen (a lower training error than
+    OpenCV's model) but predicts new views worse; the choice keeps a
+    parametric model, which predicts flat boards at least twice as well as
+    the field."""
     train = views_of(webcam_lens, (640, 480), 12, seed=0, sigma=0.1, distance=450, spread=0.2, bend=0.5)
-    cal = calibrate(train, "bspline")
-    opencv = candidate(cal, "OpenCV 5-coefficient model alone")
-    paper = candidate(cal, "field without a core (the paper's model)")
-    assert paper["gcv"] < 0.9 * opencv["gcv"] and paper["cv"] > 1.05 * opencv["cv"]
-    assert cal.model.field_held
+    cal = calibrate(train, "auto")
+    assert candidate(cal, "bspline")["validation_rmse"] > 1.05 * candidate(cal, "zhang")["validation_rmse"]
+    assert calibrate(train, "bspline").metrics["rmse"] < 0.95 * calibrate(train, "zhang").metrics["rmse"]
+    assert cal.model.kind == "opencv"
     flat = views_of(webcam_lens, (640, 480), 10, seed=10, sigma=0.0, distance=450, spread=0.2)
     ours = rmse(validation_residuals(cal, flat)[0])
     assert ours < 0.5 * rmse(validation_residuals(calibrate(train, "bspline", core="none"), flat)[0])
@@ -74,4 +71,6 @@ def per_view(mean, spread, n=10, seed=0):
 ])
 def test_the_simplest_candidate_within_the_noise_of_the_best_is_chosen(errors, chosen):
     n = len(next(e for e in errors if e is not None))
-    assert simplest_within_noise(errors, np.full(n, 50), 0.02) == chosen
+    choice = choose([Candidate(str(k), f"model {k}", e) for k, e in enumerate(errors)], np.full(n, 50))
+    assert choice.chosen == chosen
+    assert sum(c["chosen"] for c in choice.to_json()["candidates"]) == 1

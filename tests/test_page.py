@@ -33,7 +33,7 @@ SHOTS = ROOT / "test-artifacts" / "page"
 # a quick B-spline fit: the page test is about the page, not the method. A field over the
 # rational core, so that there is a field to review (on OpenCV's own lens the default
 # model choice keeps OpenCV's model alone: the token test below sees that choice).
-SETTINGS = {"knots": "uniform", "lambda_smooth": "0.1", "max_iterations": "30",  # intervals: auto (GCV)
+SETTINGS = {"knots": "uniform", "lambda_smooth": "0.1", "max_iterations": "30",  # intervals: auto
             "bandwidth_factor": "1.2", "time_budget": "60", "core": "rational"}
 
 
@@ -218,15 +218,15 @@ def test_browser_with_a_token_asks_once_then_sends_it_everywhere(browser, guarde
     assert page.locator("#token-form").count() == 0
 
     page.set_input_files("#files", [str(p) for p in images])
-    page.select_option("#method", "bspline")
-    fill_settings(page, {**SETTINGS, "core": "auto"})
+    assert page.input_value("#method") == "auto"  # the default
     page.click("#submit")
     page.wait_for_selector("#metrics-overall", timeout=180_000)
-    # the default model choice: every candidate (cores alone, the paper's field, a field over a
-    # core) with its cross-validated and GCV scores, one chosen
+    # the default model choice: every candidate (parametric models, the paper's field, a field
+    # over a core) with its validation error, one chosen, named in words with the rule
     rows = page.locator("#metrics-model-choice tbody tr")
     assert rows.count() == 5 and page.locator("#metrics-model-choice tbody tr.best").count() == 1
-    assert "px²" in page.text_content("#metrics-model-choice thead")
+    assert "Model chosen:" in page.text_content("#metrics-model-choice caption")
+    assert "standard error" in page.text_content("#metrics-model-choice + p")
     # <img src> and links cannot send headers: they carry ?token=
     first = page.locator("#images img").first
     first.scroll_into_view_if_needed()
@@ -237,7 +237,7 @@ def test_browser_with_a_token_asks_once_then_sends_it_everywhere(browser, guarde
     assert hrefs and all(f"token={TOKEN}" in h for h in hrefs)
     with page.expect_download() as dl:
         page.click("#downloads a[data-file='calibration.json']")
-    assert Calibration.from_json(json.loads(Path(dl.value.path()).read_text())).method == "bspline"
+    assert Calibration.from_json(json.loads(Path(dl.value.path()).read_text())).method == "auto"
     page.wait_for_function("document.querySelector('#rectified-after') && "
                            "document.querySelector('#rectified-after').naturalWidth > 0", timeout=60_000)
 

@@ -18,8 +18,8 @@ from .conftest import synthetic
 
 # method (settings) → the distortion.type it writes
 MODEL_TYPES = {("zhang", ()): "opencv", ("rational", ()): "opencv", ("fisheye", ()): "fisheye",
-               ("mls", ()): "mls", ("tps", ()): "tps", ("bspline", ()): "hybrid",
-               ("bspline", (("core", "none"),)): "bspline"}
+               ("mls", ()): "mls", ("tps", ()): "tps", ("bspline", (("core", "rational"),)): "hybrid",
+               ("bspline", ()): "bspline"}
 
 
 @functools.lru_cache(maxsize=None)

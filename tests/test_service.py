@@ -27,7 +27,7 @@ def service(tmp_path_factory):
 
 def test_job_progress_results_and_restart(service):
     set_id = upload_observations(service.client, synthetic("radial").train.to_json())
-    job_id = create_job(service.client, set_id, settings=SLOW)
+    job_id = create_job(service.client, set_id, "auto")  # the default: a model choice, seconds long
     seen: list[dict] = []
     job = wait_job(service.client, job_id, 120, service.logs(), seen=seen)
     assert job["state"] == "done", job["error"]
@@ -41,14 +41,15 @@ def test_job_progress_results_and_restart(service):
     assert r.status_code == 200 and r.headers["content-type"].startswith("application/json")
     assert f'filename="freecal-job-{job_id}-calibration.json"' in r.headers["content-disposition"]
     cal = Calibration.from_json(r.json())
-    assert cal.method == "bspline" and cal.metrics["rmse"] < 2.0
+    assert cal.method == "auto" and cal.metrics["rmse"] < 2.0
     csv = service.client.get(f"/api/jobs/{job_id}/corner_residuals.csv")
     assert csv.headers["content-type"].startswith("text/csv")
     assert csv.text.splitlines()[0].startswith("view,index,id,x,y,dx,dy,error,outlier")
-    for name in ("view_residuals.json", "heatmap.json", "knots.json", "distortion_field.json", "comparison.csv"):
+    for name in ("view_residuals.json", "heatmap.json", "distortion_field.json", "comparison.csv"):
         assert service.client.get(f"/api/jobs/{job_id}/{name}").status_code == 200, name
-    # OpenCV's own lens: the B-spline method kept OpenCV's model alone, which OpenCV reads as it is
-    assert cal.model.field_held
+    assert service.client.get(f"/api/jobs/{job_id}/knots.json").status_code == 404  # no field, no knots
+    # OpenCV's own lens: the default chose OpenCV's model, which OpenCV reads as it is
+    assert cal.model.kind == "opencv" and cal.settings["chosen"] == "zhang"
     yaml = service.client.get(f"/api/jobs/{job_id}/opencv.yaml")
     assert yaml.status_code == 200 and "distortion_coefficients" in yaml.text
 
@@ -133,7 +134,7 @@ def test_job_errors_answer_4xx_with_advice(service):
 def test_failed_job_reports_why_in_plain_words(service):
     obs = synthetic("radial").train.to_json()
     obs["views"] = obs["views"][:2]
-    r = service.client.post("/api/jobs", json={"observations": obs, "settings": QUICK})
+    r = service.client.post("/api/jobs", json={"observations": obs, "method": "bspline", "settings": QUICK})
     job = wait_job(service.client, r.json()["id"], 60, service.logs())
     assert job["state"] == "failed" and "at least 3 views" in job["error"]
 

@@ -52,7 +52,7 @@ def test_unreachable_redis_answers_503_with_advice(tmp_path):
     env = {**FAST, "FREECAL_QUEUE": "redis", "FREECAL_REDIS_URL": f"redis://127.0.0.1:{free_port()}/0"}
     svc = Service(tmp_path / "data", tmp_path, env, workers=0).start()
     try:
-        r = svc.client.post("/api/jobs", json={"observations": synthetic("radial").train.to_json(), "settings": QUICK})
+        r = svc.client.post("/api/jobs", json={"observations": synthetic("radial").train.to_json(), "method": "bspline", "settings": QUICK})
         assert r.status_code == 503 and "Redis at redis://127.0.0.1" in r.json()["detail"]
         assert svc.client.get("/api/jobs").json()["count"] == 0
     finally:

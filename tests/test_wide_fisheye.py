@@ -21,10 +21,10 @@ def test_reader_matches_the_published_geometry(sets):
     assert pts[:, 2].max() == 0 and 0 < pts[:, 0].max() <= 22 * 7.5 + 1e-9
 
 
-def test_default_bspline_beats_kannala_brandt_on_held_out_views(sets):
+def test_the_default_beats_kannala_brandt_on_held_out_views(sets):
     train, test = sets
     kb = evaluate(calibrate(train, "fisheye"), test)
-    ours_cal = calibrate(train, "bspline")
+    ours_cal = calibrate(train)
     ours = evaluate(ours_cal, test)
     assert ours_cal.diagnostics["excluded_points"]["outside_model"] == 0  # nothing lost past 90°
     # mrcal's splined stereographic model, same corners: 0.45 px test rms (per axis).

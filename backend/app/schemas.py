@@ -54,7 +54,8 @@ class SetsPublic(BaseModel):
 class JobCreate(BaseModel):
     set_id: str | None = Field(None, description="an image set whose corners are ready")
     observations: dict[str, Any] | None = Field(None, description="or corners inline: freecal.observations/1")
-    method: str = Field("bspline", description="a method name, or 'compare' for all methods")
+    method: str = Field("auto", description="a method name ('auto', the default, chooses the model that best "
+                        "predicts views left out of its fit), or 'compare' for all methods")
     settings: dict[str, Any] = Field(default_factory=dict, description="the method's settings, e.g. "
                                      "{\"knots\": \"uniform\", \"intervals\": [8, 8], \"lambda_smooth\": 0.1}")
 

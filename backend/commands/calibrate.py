@@ -1,4 +1,4 @@
-"""freecal calibrate OBS.json --method bspline -o CAL.json [settings]
+"""freecal calibrate OBS.json [--method auto] -o CAL.json [settings]
 freecal calibrate IMAGES_OR_DIR... --board SPEC ... (detects first, then calibrates)"""
 from __future__ import annotations
 
@@ -10,7 +10,6 @@ from pathlib import Path
 from calib_core import Observations, calibrate
 from calib_core.detect import IMAGE_SUFFIXES
 from calib_core.errors import SettingsError
-from calib_core.methods.bspline_auto import CV_TOLERANCE
 
 from .detect import BOARD_HELP, detect_with_report
 from .output import StageProgress, print_json, table
@@ -44,19 +43,19 @@ def _number_or_auto(text: str):
 
 # (flag, settings key, type, help); only the flags given reach the method.
 BSPLINE_FLAGS = [
-    ("--core", "core", str, "parametric core under the field: auto, none (the paper's model), rational, fisheye"),
+    ("--core", "core", str, "parametric core under the field: none (the paper's model), rational, fisheye"),
     ("--knots", "knots", str, "knot strategy: kde, kde-paper (the paper's candidates only), uniform"),
-    ("--intervals", "intervals", _intervals, "knot intervals per direction: N, NxM or auto (GCV)"),
+    ("--intervals", "intervals", _intervals, "knot intervals per direction: N, NxM or auto (validation over views)"),
     ("--max-intervals", "max_intervals", int, "cap of knot intervals per direction (kde)"),
     ("--min-support", "min_support", int, "minimum corners per knot interval (default max(10, N/50))"),
     ("--bandwidth", "bandwidth", str, "KDE bandwidth rule: scott or silverman"),
     ("--bandwidth-factor", "bandwidth_factor", _number_or_auto,
-     "KDE bandwidth multiplier (Table 2: 1.0), or auto (GCV, with the intervals)"),
+     "KDE bandwidth multiplier (Table 2: 1.0), or auto (validation over views, with the intervals)"),
     ("--window-ratio", "window_ratio", float, "local-std window ratio rho"),
     ("--weighting", "weighting", str, "sample weights: local_std, uniform, magnitude, gradient"),
     ("--lambda-reg", "lambda_reg", float, "L2 weight on control values"),
-    ("--lambda-smooth", "lambda_smooth", _number_or_auto, "bending-energy weight of the field, or auto (GCV)"),
-    ("--time-budget", "time_budget", float, "seconds the GCV search over knot grids and bandwidths may take "
+    ("--lambda-smooth", "lambda_smooth", _number_or_auto, "bending-energy weight of the field, or auto (validation over views)"),
+    ("--time-budget", "time_budget", float, "seconds the search over knot grids and bandwidths may take "
                                             "(default: no limit)"),
     ("--base", "base", str, "base projection: pinhole, equidistant, stereographic"),
     ("--max-iterations", "max_iterations", int, "Levenberg-Marquardt iteration cap"),
@@ -72,7 +71,9 @@ def register(sub) -> None:
                    help="freecal.observations/1 JSON file, or image files and/or folders (with --board)")
     p.add_argument("--board", help="detect this board in the images first; " + BOARD_HELP)
     p.add_argument("--workers", type=int, default=None, help="detection worker processes (default: all cores)")
-    p.add_argument("--method", default="bspline", help="calibration method (default: bspline)")
+    p.add_argument("--method", default="auto", metavar="METHOD",
+                   help="calibration method: auto (the default: the candidate that best predicts views left out "
+                        "of its fit), bspline (the paper's field; settings below), zhang, rational, fisheye, mls, tps")
     p.add_argument("-o", "--output", help="write the freecal.calibration/1 JSON here")
     p.add_argument("--json", action="store_true", help="print the calibration JSON instead of a summary")
     p.add_argument("--outlier-sigma", type=float, default=5.0,
@@ -86,6 +87,11 @@ def register(sub) -> None:
 
 
 def settings_of(args) -> dict:
+    given = [flag for flag, key, _, _ in BSPLINE_FLAGS if getattr(args, key) is not None]
+    if given and args.method != "bspline":
+        raise SettingsError(f"{', '.join(given)} set the B-spline field: add --method bspline (--method {args.method} "
+                            + ("chooses the model, knot grid and smoothing itself)" if args.method == "auto" else
+                               "takes its settings with --set KEY=VALUE)"))
     settings = {key: getattr(args, key) for _, key, _, _ in BSPLINE_FLAGS if getattr(args, key) is not None}
     for item in args.set:
         key, sep, value = item.partition("=")
@@ -141,26 +147,18 @@ def print_summary(cal) -> None:
     m, d = cal.metrics, cal.diagnostics
     fx, fy, cx, cy, s = cal.model.intrinsics
     print(f"method {cal.method}: fx={fx:.3f} fy={fy:.3f} cx={cx:.3f} cy={cy:.3f} skew={s:.4f} (pixels)")
-    candidates = d.get("core_candidates")
-    if candidates:
-        print(f"model chosen: {d['core_choice'].split(':')[0]}; each candidate's validation error over splits of "
-              f"the views (the simplest within {100 * CV_TOLERANCE:.0f} % or one standard error of the lowest is "
-              "kept; '-': not validated) and the GCV of its corners:")
-        table(["model", "validation [px^2]", "GCV [px^2]", "chosen"],
-              [(c["model"], "-" if c.get("cv") is None else c["cv"],
-                "cannot fit these corners" if c["gcv"] is None else c["gcv"], "*" if c["chosen"] else "")
-               for c in candidates])
-    elif "core_choice" in d:
-        print(f"model: {d['core_choice']}")
+    if "model_choice" in d:
+        print_choice(d["model_choice"])
     if "design" in d:
         g = d["design"]
         print(f"knot intervals {g['intervals'][0]} x {g['intervals'][1]}, design rank {g['rank']}/{g['n_controls']}, "
               f"zero columns {g['zero_columns']}")
     curve = d.get("smoothing_curve")
     if curve:
-        print("knot grid, bandwidth and smoothing chosen by generalised cross-validation (lower is better):")
+        print("knot grid, bandwidth and smoothing chosen by how well the field predicts views left out of its fit "
+              "(lower is better):")
         chosen = [cal.settings.get("intervals_used"), cal.settings.get("bandwidth_factor_used")]
-        table(["grid", "bandwidth factor", "lambda_smooth", "GCV score [px^2]", "effective parameters", "chosen"],
+        table(["grid", "bandwidth factor", "lambda_smooth", "validation [px^2]", "effective parameters", "chosen"],
               [_curve_row(c, chosen) for c in curve])
     sv = d.get("solver", {})
     print(f"solver: {sv.get('status')} after {sv.get('iterations')} iterations ({sv.get('message')}), "
@@ -174,11 +172,22 @@ def print_summary(cal) -> None:
         print(f"dropped {dv['name']}: {dv['reason']}")
 
 
+def print_choice(choice: dict) -> None:
+    """The model choice in words, and the score table that made it."""
+    print(f"model chosen: {choice['summary']}")
+    print(f"rule: {choice['rule']}; {choice['how']}")
+    table(["candidate", "validation rmse per axis [px]", "parameters", "chosen"],
+          [(c["label"], "—" if c["validation_rmse"] is None else c["validation_rmse"], c["n_params"] or "—",
+            "*" if c["chosen"] else c.get("error", "")) for c in choice["candidates"]])
+    print(f"one standard error of the lowest: ±{choice['standard_error_rmse']:.4f} px; candidates up to "
+          f"{choice['threshold_rmse']:.4f} px count as equally good")
+
+
 def _curve_row(c: dict, chosen: list) -> tuple:
     grid = "x".join(map(str, c["intervals"]))
     factor = c.get("bandwidth_factor")  # absent from calibrations made before it was chosen
     shown = "—" if factor is None else f"{factor:g}"
     if "skipped" in c:
         return grid, shown, "—", "—", "—", f"skipped ({c['skipped']})"
-    return (grid, shown, c["lambda_smooth"], c["gcv"], f"{c['dof']:.0f}",
+    return (grid, shown, c["lambda_smooth"], c["cv"], f"{c['dof']:.0f}",
             "*" if [c["intervals"], factor] == chosen else "")

@@ -1,18 +1,20 @@
 """Calibration methods: each turns observations into a fitted model and poses.
 
 A method is a function ``fit(data, image_size, settings, progress) -> Fit``
-registered in ``METHODS`` with its settings class. ``calibrate.py`` does the
+registered in ``METHODS`` with its settings class; ``auto`` (the default)
+chooses among the others by prediction of views left out. ``calibrate.py`` does the
 rest (views, outliers, metrics, JSON) the same way for every method.
 """
 from __future__ import annotations
 
-from .bspline import BSplineSettings
-from .bspline_auto import fit_bspline
+from .auto import AutoSettings, fit_auto
+from .bspline import BSplineSettings, fit_bspline
 from .fisheye import FisheyeSettings, fit_fisheye
 from .opencv import OpenCVSettings, RationalSettings, fit_opencv
 from .residual_fields import MLSSettings, TPSSettings, fit_mls, fit_tps
 
 METHODS = {
+    "auto": (fit_auto, AutoSettings),
     "bspline": (fit_bspline, BSplineSettings),
     "zhang": (fit_opencv, OpenCVSettings),
     "rational": (fit_opencv, RationalSettings),

@@ -9,15 +9,15 @@ control point.
 ``core="none"`` is the paper's model: the field moves ideal pixels of the base
 projection. With ``core="rational"`` or ``"fisheye"`` the field moves the
 pixels of a jointly fitted OpenCV-rational or Kannala–Brandt camera and is
-regularised towards zero (``models/hybrid.py``). ``core="auto"``, the
-default, chooses among these and the parametric cores alone
-(``bspline_auto.py``); this module is one field fit (``fit_field``).
+regularised towards zero (``models/hybrid.py``). Which of these, or a
+parametric model alone, a lens wants is ``method="auto"``'s choice
+(``auto.py``).
 
 With ``intervals="auto"`` and ``lambda_smooth="auto"`` (the defaults) a first
 joint fit on a middle-sized grid takes out the initial camera's errors; then
 the knot count and the smoothing weight (and, with
-``bandwidth_factor="auto"``, the KDE bandwidth) are chosen by generalised
-cross-validation of the control-point problem (``smoothing.py``), within
+``bandwidth_factor="auto"``, the KDE bandwidth) are chosen by how well the
+control points predict views left out of their fit (``smoothing.py``), within
 ``time_budget`` seconds if one is set, and the joint fit is run again on that
 grid.
 """
@@ -30,46 +30,50 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .. import camera, knots
+from .. import camera, knots, metrics
 from ..bspline import BSplineField, clamped_knots
+from ..choice import Candidate, choose
 from ..errors import DataError, SettingsError
 from ..init import initialise
 from ..metrics import design_diagnostics
 from ..models.bspline import GAUGE_WEIGHT, BSplineModel, gauge_rows
 from ..models.hybrid import HybridModel
-from ..smoothing import LAMBDA_GRID, gcv_curve
-from ..solve import Data, SolveSettings, levenberg_marquardt
+from ..smoothing import LAMBDA_GRID, CVCurve, cv_curve, groups_of
+from ..solve import Data, SolveSettings, levenberg_marquardt, residuals
 from .common import Fit, Progress
 from .fisheye import FisheyeSettings, fit_fisheye
 from .opencv import OpenCVSettings, RationalSettings, fit_opencv
 
 PINHOLE_MAX_ANGLE_DEG = camera.PINHOLE_MAX_ANGLE_DEG
 DOMAIN_MARGIN = 0.02  # of the domain's span, on every side
+# A field fit whose focal length is this far (relative) from a parametric
+# camera's on the same corners, or whose rmse is this many times that
+# camera's, has walked to a wrong camera (``wrong_camera``).
+WRONG_FOCAL = 0.1
+WORSE_FIT = 1.2
 AUTO = "auto"
 AUTO_INTERVALS = (6, 8, 10, 12, 15)
+STALE_GRIDS = 2
 # Scott × factor candidates (method.md §"Adaptive knots"), the paper's 1.0 first:
 # with a time budget the search covers every grid at 1.0 before the others.
 AUTO_BANDWIDTH_FACTORS = (1.0, 1.2, 0.8, 1.5)
-CORES = ("auto", "none", "rational", "fisheye")
-# Knot counts within this fraction of the best GCV score count as equally good:
-# the coarsest of them is taken (see _choose_smoothing).
-GCV_TOLERANCE = 0.02
+CORES = ("none", "rational", "fisheye")
 
 
 @dataclass
 class BSplineSettings:
-    core: str = "auto"  # "none" (the paper's model) | "rational" | "fisheye" | "auto" (see CORES)
+    core: str = "none"  # "none" (the paper's model) | "rational" | "fisheye"
     knots: str = "kde"  # "kde" | "kde-paper" (the paper's candidates only) | "uniform" | "explicit"
     interior_knots: tuple | None = None  # "explicit": ([u knots], [v knots]) in the field's pixels
-    intervals: int | tuple[int, int] | str = AUTO  # per direction; "auto": chosen by GCV
+    intervals: int | tuple[int, int] | str = AUTO  # per direction; "auto": chosen by validation over views
     bandwidth: str = "scott"
-    bandwidth_factor: float | str = 1.0  # "auto": chosen by GCV from AUTO_BANDWIDTH_FACTORS
+    bandwidth_factor: float | str = 1.0  # "auto": chosen from AUTO_BANDWIDTH_FACTORS by validation
     max_intervals: int = 15
     min_support: int | None = None
     window_ratio: float = 0.05
     weighting: str = "local_std"  # Table 12: local_std | uniform | magnitude | gradient
     lambda_reg: float = 1e-6
-    lambda_smooth: float | str = AUTO  # "auto": chosen by GCV
+    lambda_smooth: float | str = AUTO  # "auto": chosen by validation over views
     time_budget: float | None = None  # seconds for the search over knot grids and bandwidths; None: no limit
     base: str = "pinhole"
     max_iterations: int = 500
@@ -126,8 +130,8 @@ class BSplineSettings:
 class FieldProblem:
     """What the field is fitted to: where it is evaluated and how to build it.
 
-    ``samples(model, poses, data)`` gives the field's evaluation points (N, 2)
-    and the offsets (N, 2) it must add there; ``make(field, λ_smooth, start)``
+    ``samples(model, poses, data)`` gives the field's evaluation points (N, 2),
+    the offsets (N, 2) it must add there and the view (N,) of each; ``make(field, λ_smooth, start)``
     builds the camera model around a field, from a model whose non-field part
     it keeps."""
 
@@ -213,7 +217,7 @@ def ideal_field_problem(init, data: Data, image_size, s: BSplineSettings):
 
     def samples(model, poses, sub):
         pts, seen = ideal_samples(model, poses, sub, s.base)
-        return pts[seen], sub.image_points[seen] - pts[seen]
+        return pts[seen], sub.image_points[seen] - pts[seen], sub.view_index[seen]
 
     def make(field, lambda_smooth, start):
         k = start.intrinsics
@@ -246,7 +250,7 @@ def core_field_problem(data: Data, image_size, s: BSplineSettings, core: str, pr
         core_model = model.core if isinstance(model, HybridModel) else model
         pc = camera.transform(poses, sub.view_index, sub.object_points)
         pts = core_model.project(pc)
-        return pts, sub.image_points - pts
+        return pts, sub.image_points - pts, sub.view_index
 
     def make(field, lambda_smooth, start):
         core_model = start.core if isinstance(start, HybridModel) else start
@@ -286,46 +290,120 @@ def _fitted(problem: FieldProblem, breaks, lambda_reg, lambda_smooth, start, sam
     return problem.make(field.with_control(control), lambda_smooth, start)
 
 
-def _choose_smoothing(problem: FieldProblem, samples, response, weights, s: BSplineSettings):
-    """(intervals, bandwidth factor, λ_smooth, curve) minimising GCV over what
-    is left "auto", within ``s.time_budget`` seconds. Candidates run cheapest
-    (fewest intervals) and most likely (the paper's bandwidth) first; the first
-    always runs, and those the budget leaves out enter the curve as skipped."""
+def _field_cv(problem: FieldProblem, field: BSplineField, samples, response, weights, views, lambda_reg: float,
+              lambdas: np.ndarray, refine: bool = False) -> CVCurve:
+    """Grouped (by view) cross-validation of the control points on this
+    field's knots (``smoothing.cv_curve``). What is smoothed is the departure
+    from the prior field: that is what is cross-validated."""
+    b = field.design(samples).matrix(field.n_controls)
+    p0 = problem.prior_control(field).reshape(-1, 2)
+    return cv_curve(b, weights / weights.mean(axis=0), field.bending(),
+                    gauge_rows(field, problem.gauge_point) * GAUGE_WEIGHT, response - b @ p0,
+                    lambda_reg, groups_of(views), lambdas, refine)
+
+
+def _choose_smoothing(problem: FieldProblem, samples, response, weights, views, s: BSplineSettings):
+    """(intervals, bandwidth factor, λ_smooth, curve): what is left "auto",
+    chosen by how well the field predicts views left out of its fit, within
+    ``s.time_budget`` seconds. Each grid takes the λ that predicts best; of
+    the grids, the coarsest whose error is within the noise of the lowest
+    (``choice.choose``: extra knots cost most where no corner is, at the
+    image's edges and corners).
+    Candidates run cheapest (fewest intervals) and most likely (the paper's
+    bandwidth) first; the first always runs. Finer grids stop once
+    STALE_GRIDS in a row have not predicted clearly better than the best so
+    far (the rule would not take them), and those the time budget leaves out
+    stop too; both enter the curve as skipped."""
     counts = [(m, m) for m in AUTO_INTERVALS if m <= s.max_intervals] if s.intervals == AUTO else [s.intervals]
     factors = AUTO_BANDWIDTH_FACTORS if s.bandwidth_factor == AUTO else [s.bandwidth_factor]
     lambdas = LAMBDA_GRID if s.lambda_smooth == AUTO else np.array([float(s.lambda_smooth)])
     started = time.perf_counter()
     curve, options, scored = [], [], {}
     for factor in factors:
+        stale = 0  # finer grids in a row that predicted no better than the best so far
         for m in counts:
-            if options and s.time_budget is not None and time.perf_counter() - started > s.time_budget:
-                curve.append({"intervals": list(m), "bandwidth_factor": factor, "skipped": "time budget"})
+            skip = ("time budget" if options and s.time_budget is not None
+                    and time.perf_counter() - started > s.time_budget else
+                    f"{STALE_GRIDS} coarser grids predicted no better" if stale >= STALE_GRIDS else "")
+            if skip:
+                curve.append({"intervals": list(m), "bandwidth_factor": factor, "skipped": skip})
                 continue
             breaks = knots.breaks_for(samples, weights, problem.domain, s.knot_settings(m, factor), problem.footprint)
             key = (breaks[0].tobytes(), breaks[1].tobytes())
             if key not in scored:  # factors that move no knot (e.g. uniform knots) cost nothing more
                 field = BSplineField.zeros(clamped_knots(breaks[0]), clamped_knots(breaks[1]))
-                b = field.design(samples).matrix(field.n_controls)
-                # What is smoothed is the departure from the prior field: cross-validate that.
-                p0 = problem.prior_control(field).reshape(-1, 2)
-                g = gcv_curve(b, weights / weights.mean(axis=0), field.bending(),
-                              gauge_rows(field, problem.gauge_point) * GAUGE_WEIGHT, response - b @ p0,
-                              s.lambda_reg, lambdas)
-                k = int(np.argmin(g.score))
-                scored[key] = (float(g.score[k]), float(g.lambdas[k]), float(g.dof[k]))
-            score, lam, dof = scored[key]
+                scored[key] = _field_cv(problem, field, samples, response, weights, views, s.lambda_reg, lambdas,
+                                        refine=True)
+            cv = scored[key]
+            k = cv.best
             intervals = [len(breaks[0]) - 1, len(breaks[1]) - 1]
-            curve.append({"intervals": intervals, "bandwidth_factor": factor, "lambda_smooth": lam, "gcv": score,
-                          "dof": dof})
-            options.append((sum(intervals), score, m, factor, lam))
-    # The coarsest grid whose score is within GCV_TOLERANCE of the best (the
-    # lowest score among equally coarse ones): GCV measures prediction where
-    # corners are, and favours fine grids whose extra freedom costs most where
-    # they are not (edges, corners): measured on the synthetic lenses, this
-    # keeps hold-out errors 10-30 % lower.
-    best_score = min(o[1] for o in options)
-    _, _, m, factor, lam = min(o for o in options if o[1] <= best_score * (1 + GCV_TOLERANCE))
+            curve.append({"intervals": intervals, "bandwidth_factor": factor, "lambda_smooth": float(cv.lambdas[k]),
+                          "cv": float(cv.score[k]), "dof": float(cv.dof[k])})
+            options.append((sum(intervals), m, factor, float(cv.lambdas[k]), cv.group_sse[:, k], cv.counts))
+            so_far = choose([Candidate("", "", o[4]) for o in options], cv.counts)
+            stale = 0 if so_far.mse(len(options) - 1) < _within(so_far) else stale + 1
+    options.sort(key=lambda o: o[0])
+    chosen = choose([Candidate(str(o[1]), "", o[4]) for o in options], options[0][5]).chosen
+    _, m, factor, lam, _, _ = options[chosen]
     return m, factor, lam, curve
+
+
+def _within(choice) -> float:
+    """The error a new grid must beat to count as clearly better than the
+    best before it: the best's, less its noise band."""
+    previous = [choice.mse(k) for k in range(len(choice.candidates) - 1)]
+    if not previous:
+        return np.inf
+    best = min(previous)
+    return best - max(choice.tolerance * best, choice.standard_error)
+
+
+def wrong_camera(res, reference, data: Data) -> str:
+    """Why the field's fit is not to be trusted, or "": it ends far from a
+    parametric camera (``reference``: model, poses) fitted to the same
+    corners. The field can mimic a change of focal length away from the
+    gauge point, so a lens its grid cannot follow (a fisheye on a pinhole
+    base, a coarse grid) may walk the camera to a wrong focal length and
+    throw corners out as outliers; a field is more flexible than the
+    parametric camera and must fit at least about as well."""
+    ref_model, ref_poses = reference
+    focal = res.model.intrinsics[:2] / ref_model.intrinsics[:2] - 1
+    ref_rmse = metrics.rmse(residuals(ref_model, ref_poses, data))
+    fit_rmse = metrics.rmse(res.residuals)
+    why = []
+    if np.max(np.abs(focal)) > WRONG_FOCAL:
+        why.append(f"its focal length (fx {res.model.intrinsics[0]:.1f}, fy {res.model.intrinsics[1]:.1f}) is "
+                   f"{100 * np.max(np.abs(focal)):.0f} % from the parametric camera's "
+                   f"(fx {ref_model.intrinsics[0]:.1f}, fy {ref_model.intrinsics[1]:.1f})")
+    if fit_rmse > WORSE_FIT * ref_rmse + 0.01:
+        why.append(f"it fits the corners at {fit_rmse:.3f} px where the parametric camera reaches {ref_rmse:.3f} px")
+    return "; ".join(why)
+
+
+def _restarted(res, start, reference, data: Data, final: SolveSettings, why: str):
+    """The fit again from the parametric camera's intrinsics and poses,
+    first with the intrinsics held (the field and poses settle on the right
+    camera), then with everything free; the better of the two fits, and a
+    record of both."""
+    ref_model, ref_poses = reference
+    free = start.free_mask()
+    free = np.ones(start.n_params, dtype=bool) if free is None else free.copy()
+    free[:4] = False  # fx, fy, cx, cy
+    settled = levenberg_marquardt(start, ref_poses, data, dataclasses.replace(final, free_params=free))
+    again = levenberg_marquardt(settled.model, settled.poses, data, final)
+
+    def record(r):
+        return {"rmse": metrics.rmse(r.residuals), "fx": float(r.model.intrinsics[0]),
+                "fy": float(r.model.intrinsics[1]), "iterations": r.iterations}
+
+    keep = again if again.cost < res.cost else res
+    still = wrong_camera(keep, reference, data)
+    report = {"reason": why, "first": record(res), "restarted": record(again),
+              "kept": "restarted" if keep is again else "first"}
+    if still:
+        report["warning"] = (f"the field cannot follow this lens on this grid and base ({still}): use method auto, "
+                             "--base equidistant for a wide lens, or more views")
+    return keep, report
 
 
 def sample_weights(samples: np.ndarray, response: np.ndarray, s: BSplineSettings) -> np.ndarray:
@@ -334,10 +412,15 @@ def sample_weights(samples: np.ndarray, response: np.ndarray, s: BSplineSettings
     return np.column_stack([knots.sample_weights(samples[:, a], response[:, a], s.weighting, ks) for a in range(2)])
 
 
+def fit_bspline(data: Data, image_size, s: BSplineSettings, progress: Progress) -> Fit:
+    """The method: one field fit with the core asked for."""
+    return fit_field(data, image_size, s, s.core, progress)[0]
+
+
 def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: Progress,
                core_fit: Fit | None = None) -> tuple[Fit, float]:
-    """One fit with this core ("none": the paper's model); also its GCV score
-    (px²) at the solution, which compares fits of the same corners."""
+    """One fit with this core ("none": the paper's model); also its
+    validation error (px² per corner, ``_field_cv``) at the solution."""
     progress("initialise", 0.0)
     if core == "none":
         init = initialise(data, image_size)
@@ -348,9 +431,11 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
         init_info = {"model": f"{core} core, fitted alone first"}
     sub = Data(data.object_points[ok], data.image_points[ok], data.view_index[ok], data.n_views)
 
+    reference = (init.model, init.poses) if core == "none" else (start, poses)  # a parametric camera
     progress("knots", 0.1)
-    samples, response = problem.samples(start, poses, sub)
+    samples, response, views = problem.samples(start, poses, sub)
     weights = sample_weights(samples, response, s)
+    first_samples = (samples, response, weights)
     auto = AUTO in (s.intervals, s.bandwidth_factor, s.lambda_smooth)
     m = (10, 10) if s.intervals == AUTO else s.intervals
     lam = 1.0 if s.lambda_smooth == AUTO else float(s.lambda_smooth)
@@ -368,9 +453,9 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
         progress("joint optimisation", 0.2)
         first = levenberg_marquardt(model, poses, sub, SolveSettings(min(s.max_iterations, 50), 1e-4))
         progress("knots", 0.45)
-        samples, response = problem.samples(first.model, first.poses, sub)
+        samples, response, views = problem.samples(first.model, first.poses, sub)
         weights = sample_weights(samples, response, s)
-        m, factor, lam, curve = _choose_smoothing(problem, samples, response, weights, s)
+        m, factor, lam, curve = _choose_smoothing(problem, samples, response, weights, views, s)
         breaks = knots.breaks_for(samples, weights, problem.domain, s.knot_settings(m, factor), problem.footprint)
         progress("control points", 0.5)
         model = _fitted(problem, breaks, s.lambda_reg, lam, first.model, samples, response, weights)
@@ -399,6 +484,11 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
 
     final = SolveSettings(s.max_iterations, s.ftol, gauss_newton_trials=True)
     res = levenberg_marquardt(model, poses, sub, final, on_iteration)
+    wrong = wrong_camera(res, reference, sub)
+    if wrong:
+        progress("restart", 0.9)
+        restart = _fitted(problem, breaks, s.lambda_reg, lam, start, *first_samples)
+        res, diagnostics["restart"] = _restarted(res, restart, reference, sub, final, wrong)
     settings = dataclasses.asdict(s)
     settings.update(res.model.settings_json())
     settings["intervals_used"] = [len(breaks[0]) - 1, len(breaks[1]) - 1]
@@ -408,12 +498,9 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
     settings["core_used"] = core
     # The score at the solution, with the samples' weights recomputed: a
     # corner may have crossed the pinhole's reach during the fit.
-    final_samples, final_response = problem.samples(res.model, res.poses, sub)
+    final_samples, final_response, final_views = problem.samples(res.model, res.poses, sub)
     final_weights = sample_weights(final_samples, final_response, s)
-    b = res.model.field.design(final_samples).matrix(res.model.field.n_controls)
-    score = gcv_curve(b, final_weights / final_weights.mean(axis=0), res.model.field.bending(),
-                      gauge_rows(res.model.field, problem.gauge_point) * GAUGE_WEIGHT,
-                      final_response - b @ problem.prior_control(res.model.field).reshape(-1, 2),
-                      s.lambda_reg, np.array([lam])).score[0]
-    diagnostics["gcv"] = float(score)
+    score = float(_field_cv(problem, res.model.field, final_samples, final_response, final_weights, final_views,
+                            s.lambda_reg, np.array([lam])).score[0])
+    diagnostics["cv"] = score
     return Fit(res, ~ok, reason, settings, diagnostics, solve_settings=final), float(score)

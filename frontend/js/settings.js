@@ -4,31 +4,32 @@ import { el } from "./format.js";
 
 const BSPLINE = [
   { key: "knots", label: "Knot placement", options: ["kde", "kde-paper", "uniform"], def: "kde" },
-  { key: "intervals", label: "Intervals per axis", placeholder: "auto (GCV)", type: "text" },
+  { key: "intervals", label: "Intervals per axis", placeholder: "auto (validation)", type: "text" },
   { key: "bandwidth", label: "KDE bandwidth", options: ["scott", "silverman"], def: "scott" },
   { key: "bandwidth_factor", label: "Bandwidth factor", placeholder: "1.0 (or auto)", type: "text" },
   { key: "time_budget", label: "Search time budget [s]", placeholder: "none", type: "number" },
   { key: "window_ratio", label: "Window ratio", placeholder: "0.05", type: "number" },
   { key: "weighting", label: "Weighting", options: ["local_std", "uniform", "magnitude", "gradient"], def: "local_std" },
   { key: "lambda_reg", label: "λ reg (L2)", placeholder: "1e-6", type: "number" },
-  { key: "lambda_smooth", label: "λ smooth", placeholder: "auto (GCV)", type: "text" },
-  { key: "core", label: "Parametric core", options: ["auto", "none", "rational", "fisheye"], def: "auto" },
+  { key: "lambda_smooth", label: "λ smooth", placeholder: "auto (validation)", type: "text" },
+  { key: "core", label: "Parametric core", options: ["none", "rational", "fisheye"], def: "none" },
   { key: "max_iterations", label: "Max iterations", placeholder: "500", type: "number" },
 ];
+const AUTO = [{ key: "splits", label: "Validation folds", placeholder: "5", type: "number" }];
 const COMMON = [{ key: "max_iterations", label: "Max iterations", placeholder: "default", type: "number" }];
 const COMPARE = [{ key: "splits", label: "Cross-validation folds", placeholder: "5", type: "number" }];
 
 export function initMethods(methods) {
   const select = document.getElementById("method");
   select.replaceChildren();
-  for (const m of methods.methods) select.append(el("option", { value: m, selected: m === "bspline" }, m));
+  for (const m of methods.methods) select.append(el("option", { value: m, selected: m === "auto" }, m));
   if (methods.compare) select.append(el("option", { value: "compare" }, "compare all methods"));
   select.addEventListener("change", renderFields);
   renderFields();
 }
 
 function fieldsFor(method) {
-  return method === "bspline" ? BSPLINE : method === "compare" ? COMPARE : COMMON;
+  return { bspline: BSPLINE, compare: COMPARE, auto: AUTO }[method] || COMMON;
 }
 
 function renderFields() {

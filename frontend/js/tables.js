@@ -40,27 +40,27 @@ export function viewsTable(views, title) {
   return el("div", { class: "table-wrap scroll-y" }, table);
 }
 
-/** The B-spline method's model choice (core="auto"): each candidate's cross-validated error over views
- * (and GCV of its corners), the simplest within the noise of the lowest kept. Older files have GCV only. */
+/** The default method's model choice (method "auto"): each candidate's error on views left out of its fit,
+ * ± one standard error, and the rule that decided. */
 export function modelChoiceTable(calibration) {
-  const candidates = (calibration.diagnostics || {}).core_candidates || [];
-  if (!candidates.length) return "";
-  const score = (c, key) => (c[key] == null ? (c.gcv == null ? "cannot fit these corners" : "—") : num(c[key], 4));
+  const choice = (calibration.diagnostics || {}).model_choice;
+  if (!choice) return "";
   const table = el("table", { id: "metrics-model-choice" },
-    el("caption", {}, "Model chosen from the data (cross-validation over the views)"),
-    el("thead", {}, el("tr", {}, ["model", "validation error [px²]", "GCV of the corners [px²]", ""]
+    el("caption", {}, `Model chosen: ${choice.summary}`),
+    el("thead", {}, el("tr", {}, ["candidate", "validation rmse per axis [px]", "parameters", ""]
       .map((h) => el("th", { scope: "col" }, h)))),
-    el("tbody", {}, candidates.map((c) => el("tr", { class: c.chosen ? "best" : "" },
-      el("th", { scope: "row" }, c.model), el("td", {}, score(c, "cv")), el("td", {}, score(c, "gcv")),
-      el("td", {}, c.chosen ? "chosen" : "")))));
-  const note = el("p", { class: "muted" }, "Validation error: each view predicted by the model refitted without it " +
-    "(mean squared residual per corner, both axes). The simplest model within 2 % or one standard error of the " +
-    "lowest is kept; — : not validated (too far behind by GCV, or a split of the views it could not be refit on). " +
-    "A core alone means the field had nothing to add: it is zero and held.");
+    el("tbody", {}, choice.candidates.map((c) => el("tr", { class: c.chosen ? "best" : "" },
+      el("th", { scope: "row" }, c.label),
+      el("td", {}, c.validation_rmse == null ? "—" : num(c.validation_rmse, 4)),
+      el("td", {}, c.n_params == null ? "—" : num(c.n_params)),
+      el("td", {}, c.chosen ? "chosen" : c.error || "")))));
+  const note = el("p", { class: "muted" }, `How: ${choice.how}. Rule: ${choice.rule}. One standard error of the ` +
+    `lowest: ± ${num(choice.standard_error_rmse, 4)} px, so candidates up to ${num(choice.threshold_rmse, 4)} px ` +
+    "count as equally good.");
   return el("div", { class: "table-wrap" }, table, note);
 }
 
-/** The B-spline's knot-grid and bandwidth choice: GCV score per candidate (lower predicts corners better). */
+/** The B-spline's knot-grid and bandwidth choice: error on views left out of the field's fit (lower is better). */
 export function smoothingTable(calibration) {
   const curve = (calibration.diagnostics || {}).smoothing_curve || [];
   if (!curve.length) return "";
@@ -69,12 +69,12 @@ export function smoothingTable(calibration) {
   const isChosen = (c) => JSON.stringify(c.intervals) === JSON.stringify(settings.intervals_used)
     && c.bandwidth_factor === settings.bandwidth_factor_used && !c.skipped;
   const table = el("table", { id: "metrics-smoothing" },
-    el("caption", {}, "Knot grid and bandwidth chosen from the data (generalised cross-validation)"),
-    el("thead", {}, el("tr", {}, ["knot grid", "bandwidth factor", "smoothing λ", "GCV score [px²]", "effective parameters", ""]
+    el("caption", {}, "Knot grid and bandwidth chosen from the data (validation over the views)"),
+    el("thead", {}, el("tr", {}, ["knot grid", "bandwidth factor", "smoothing λ", "validation error [px²]", "effective parameters", ""]
       .map((h) => el("th", { scope: "col" }, h)))),
     el("tbody", {}, curve.map((c) => el("tr", { class: isChosen(c) ? "best" : "" },
       el("th", { scope: "row" }, c.intervals.join(" × ")), el("td", {}, num(c.bandwidth_factor, 1)),
-      el("td", {}, num(c.lambda_smooth, 3)), el("td", {}, num(c.gcv, 4)), el("td", {}, num(c.dof, 0)),
+      el("td", {}, num(c.lambda_smooth, 3)), el("td", {}, num(c.cv, 4)), el("td", {}, num(c.dof, 0)),
       el("td", {}, isChosen(c) ? "chosen" : c.skipped ? `skipped (${c.skipped})` : "")))));
   return el("div", { class: "table-wrap" }, table);
 }

@@ -1,0 +1,175 @@
+"""``method="auto"``, the default: the model the corners support, chosen by
+how well each candidate predicts views left out of its fit.
+
+Candidates, simplest first: OpenCV's 5-coefficient model, Kannala–Brandt,
+the rational model, the paper's B-spline field, and a field over the
+rational core. A lens past the pinhole's reach (corners beyond ~89° off
+axis) gets Kannala–Brandt and a field over it instead, the only models that
+represent every corner. Every candidate that can fit the corners is scored
+(``crossval.view_errors``) and the simplest within the noise of the lowest
+is kept (``choice.choose``); it is returned as its own method returns it, so
+the calibration is written with that model's type (``opencv``, ``fisheye``,
+``bspline``, ``hybrid``) and ``settings.chosen`` names it.
+
+Whether a core or a field pays is a property of the lens, not of the number
+of views: on a large set it is decided on ``decision_views`` of them, and only
+the chosen model is fitted to all.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..choice import Candidate, ModelChoice, choose
+from ..crossval import view_errors
+from ..errors import DataError, SettingsError
+from ..init import initialise
+from ..models.hybrid import HybridModel
+from ..solve import Data, SolveSettings, levenberg_marquardt, spread_views
+from .bspline import BSplineSettings, fit_core, fit_field, ideal_samples
+from .common import Fit, Progress, scaled
+
+# Solver iterations of a fold's refit, from the full fit: the fold moves the
+# solution a little, and a few Gauss-Newton steps reach it.
+FOLD_ITERATIONS = 50
+
+
+@dataclass
+class AutoSettings:
+    splits: int = 5  # folds of the views for the validation
+    decision_views: int = 20  # above this many views, the choice is made on this many (spread over the set)
+
+    def validate(self) -> None:
+        for name, low, high in (("splits", 2, 20), ("decision_views", 3, 1000)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+                raise SettingsError(f"{name}: expected a whole number from {low} to {high}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A candidate: ``core`` fitted alone (None: no parametric core), and a
+    field over it (``field``: the core's name, "none" for the paper's field
+    on ideal pixels; None: the core alone)."""
+
+    name: str
+    label: str
+    core: str | None
+    field: str | None
+
+
+CANDIDATES = (Spec("zhang", "OpenCV 5-coefficient model", "zhang", None),
+              Spec("fisheye", "Kannala-Brandt model", "fisheye", None),
+              Spec("rational", "OpenCV rational model", "rational", None),
+              Spec("bspline", "B-spline field (the paper's model)", None, "none"),
+              Spec("hybrid-rational", "B-spline field over the rational model", "rational", "rational"))
+WIDE_CANDIDATES = (Spec("fisheye", "Kannala-Brandt model", "fisheye", None),
+                   Spec("hybrid-fisheye", "B-spline field over the Kannala-Brandt model", "fisheye", "fisheye"))
+
+
+def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit:
+    init = initialise(data, image_size)
+    _, seen = ideal_samples(init.model, init.poses, data, "pinhole")
+    wide = not seen.all()
+    specs = WIDE_CANDIDATES if wide else CANDIDATES
+    sample = data if data.n_views <= s.decision_views else spread_views(data, s.decision_views)
+    share = 1.0 if sample is data else 0.6
+    fits, why_not = _fit_candidates(specs, sample, image_size, scaled(progress, 0.0, 0.8 * share))
+    if all(f is None for f in fits):
+        raise DataError("no model fits these corners: " + "; ".join(dict.fromkeys(e for e in why_not if e)))
+    progress("model choice", 0.8 * share)
+    choice = _validate(specs, fits, why_not, sample, s.splits)
+    if wide:
+        choice.how += f"; {int((~seen).sum())} corners lie past the pinhole's reach, so only models that reach them ran"
+    if sample is not data:
+        choice.how += f"; decided on {sample.n_views} of the {data.n_views} views"
+    spec = specs[choice.chosen]
+    fit = fits[choice.chosen] if sample is data else _fit_spec(spec, data, image_size, {}, scaled(progress, share, 1.0))
+    settings = {**fit.settings, "chosen": spec.name, "splits": s.splits, "decision_views": s.decision_views}
+    return dataclasses.replace(fit, settings=settings, diagnostics={**fit.diagnostics, "model_choice": choice.to_json()})
+
+
+def _fit_spec(spec: Spec, data: Data, image_size, cores: dict[str, Fit | None], progress: Progress) -> Fit:
+    """One candidate fitted to ``data`` (``cores``: its core fitted alone, if done)."""
+    if spec.field is None:
+        return cores.get(spec.core) or fit_core(data, image_size, spec.core, progress)
+    s = BSplineSettings(core=spec.field)
+    return fit_field(data, image_size, s, spec.field, progress, cores.get(spec.core))[0]
+
+
+def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
+    """Each candidate's fit (None if it cannot fit these corners) and why not."""
+    why_not = [""] * len(specs)
+    cores: dict[str, Fit | None] = {}
+    fits: list[Fit | None] = []
+    for i, spec in enumerate(specs):
+        part = scaled(progress, i / len(specs), (i + 1) / len(specs))
+        if spec.core is not None and spec.core not in cores:
+            cores[spec.core] = _try(why_not, i, fit_core, sample, image_size, spec.core, part)
+        if spec.core is not None and cores[spec.core] is None:
+            fits.append(None)
+            why_not[i] = why_not[i] or f"its {spec.core} core cannot fit these corners"
+            continue
+        fits.append(_try(why_not, i, _fit_spec, spec, sample, image_size, cores, part))
+    return fits, why_not
+
+
+def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data, splits: int) -> ModelChoice:
+    """Each candidate's validation error per view over ``splits`` folds of
+    the views (``crossval.view_errors``), on the corners every candidate
+    could use, and the one-standard-error choice among them."""
+    kept = np.logical_and.reduce([~f.excluded for f in fits if f is not None])
+    counts = np.bincount(sample.view_index[kept], minlength=sample.n_views)
+    splits = min(splits, sample.n_views)
+    cores = {spec.core: fit for spec, fit in zip(specs, fits) if spec.field is None and fit is not None}
+    candidates = []
+    for spec, fit, reason in zip(specs, fits, why_not):
+        errors = None
+        if fit is not None:
+            errors = view_errors(_fold_refit(fit, cores.get(spec.core)), fit.result.poses, sample, ~fit.excluded,
+                                 kept, splits)
+            reason = "" if errors is not None else "its refit without some of the views failed"
+        candidates.append(Candidate(spec.name, spec.label, errors, reason,
+                                    None if fit is None else int(np.sum(_free(fit.result.model)))))
+    if all(c.view_sse is None for c in candidates):
+        raise DataError("no model could be validated on views left out of its fit: add views")
+    how = (f"validation error per axis over {splits} folds of the {sample.n_views} views: each candidate "
+           "refit without a fold's views, then those views predicted with only their poses refit")
+    return choose(candidates, counts, how=how)
+
+
+def _free(model) -> np.ndarray:
+    mask = model.free_mask()
+    return np.ones(model.n_params, dtype=bool) if mask is None else mask
+
+
+def _fold_refit(fit: Fit, core: Fit | None):
+    """How a fit is refit to one fold's views: by the solver that fitted it,
+    from the full fit's camera and poses. A field over a core refits the core
+    alone first (``core``, as fitted alone), as the method does: its joint
+    fit holds the core's coefficients, and held as fitted to every view they
+    would flatter it."""
+    def settings(f: Fit) -> SolveSettings:
+        return dataclasses.replace(f.solve_settings or SolveSettings(), max_iterations=FOLD_ITERATIONS)
+
+    model = fit.result.model
+
+    def refit(train: Data, poses: np.ndarray):
+        if isinstance(model, HybridModel):
+            alone = levenberg_marquardt(core.result.model, poses, train, settings(core))
+            start = HybridModel(alone.model, model.field, model.lambda_reg, model.lambda_smooth, model.gauge_point)
+            return levenberg_marquardt(start, alone.poses, train, settings(fit)).model
+        return levenberg_marquardt(model, poses, train, settings(fit)).model
+    return refit
+
+
+def _try(why_not: list[str], i: int, fit_fn, *args):
+    """``fit_fn(*args)``, or None (and why, in ``why_not[i]``) if the model
+    cannot fit these corners."""
+    try:
+        return fit_fn(*args)
+    except (DataError, FloatingPointError, np.linalg.LinAlgError) as exc:  # too few corners, diverged, no finite start
+        why_not[i] = str(exc)
+        return None

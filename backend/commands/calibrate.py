@@ -149,6 +149,12 @@ def print_summary(cal) -> None:
     print(f"method {cal.method}: fx={fx:.3f} fy={fy:.3f} cx={cx:.3f} cy={cy:.3f} skew={s:.4f} (pixels)")
     if "model_choice" in d:
         print_choice(d["model_choice"])
+    if "restart" in d:
+        r = d["restart"]
+        print(f"restarted from a parametric camera: {r['reason']}; kept the {r['kept']} fit "
+              f"({r['first']['rmse']:.3f} px first, {r['restarted']['rmse']:.3f} px restarted)")
+        if "warning" in r:
+            print(f"warning: {r['warning']}")
     if "design" in d:
         g = d["design"]
         print(f"knot intervals {g['intervals'][0]} x {g['intervals'][1]}, design rank {g['rank']}/{g['n_controls']}, "

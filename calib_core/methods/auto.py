@@ -18,6 +18,7 @@ the chosen model is fitted to all.
 from __future__ import annotations
 
 import dataclasses
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,7 +30,7 @@ from ..init import initialise
 from ..models.hybrid import HybridModel
 from ..solve import Data, SolveSettings, levenberg_marquardt, spread_views
 from .bspline import BSplineSettings, fit_core, fit_field, ideal_samples
-from .common import Fit, Progress, scaled
+from .common import Fit, Progress, no_progress, scaled
 
 # Solver iterations of a fold's refit, from the full fit: leaving out a fold
 # moves the solution a little, and a few steps reach it. Measured against 50
@@ -78,6 +79,7 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
     wide = not seen.all()
     specs = WIDE_CANDIDATES if wide else CANDIDATES
     sample = data if data.n_views <= s.decision_views else spread_views(data, s.decision_views)
+    initialise(sample, image_size)  # cached, before the candidates share it from two threads
     share = 1.0 if sample is data else 0.6
     fits, why_not = _fit_candidates(specs, sample, image_size, scaled(progress, 0.0, 0.8 * share))
     if all(f is None for f in fits):
@@ -99,23 +101,34 @@ def _fit_spec(spec: Spec, data: Data, image_size, cores: dict[str, Fit | None], 
     if spec.field is None:
         return cores.get(spec.core) or fit_core(data, image_size, spec.core, progress)
     s = BSplineSettings(core=spec.field)
-    return fit_field(data, image_size, s, spec.field, progress, cores.get(spec.core))[0]
+    return fit_field(data, image_size, s, spec.field, progress, cores.get(spec.core))
 
 
 def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
-    """Each candidate's fit (None if it cannot fit these corners) and why not."""
+    """Each candidate's fit (None if it cannot fit these corners) and why
+    not. A candidate with no parametric core (the paper's field) depends on
+    no other: it runs on the second core meanwhile (the heavy parts, the
+    compiled kernels and LAPACK, release the GIL), reporting no progress of
+    its own."""
     why_not = [""] * len(specs)
     cores: dict[str, Fit | None] = {}
-    fits: list[Fit | None] = []
-    for i, spec in enumerate(specs):
-        part = scaled(progress, i / len(specs), (i + 1) / len(specs))
-        if spec.core is not None and spec.core not in cores:
-            cores[spec.core] = _try(why_not, i, fit_core, sample, image_size, spec.core, part)
-        if spec.core is not None and cores[spec.core] is None:
-            fits.append(None)
-            why_not[i] = why_not[i] or f"its {spec.core} core cannot fit these corners"
-            continue
-        fits.append(_try(why_not, i, _fit_spec, spec, sample, image_size, cores, part))
+    fits: list[Fit | None] = [None] * len(specs)
+    alone = [i for i, spec in enumerate(specs) if spec.core is None]
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        background = {i: pool.submit(_try, why_not, i, _fit_spec, specs[i], sample, image_size, {}, no_progress)
+                      for i in alone}
+        for i, spec in enumerate(specs):
+            if i in background:
+                continue
+            part = scaled(progress, i / len(specs), (i + 1) / len(specs))
+            if spec.core not in cores:
+                cores[spec.core] = _try(why_not, i, fit_core, sample, image_size, spec.core, part)
+            if cores[spec.core] is None:
+                why_not[i] = why_not[i] or f"its {spec.core} core cannot fit these corners"
+                continue
+            fits[i] = _try(why_not, i, _fit_spec, spec, sample, image_size, cores, part)
+        for i, future in background.items():
+            fits[i] = future.result()
     return fits, why_not
 
 
@@ -127,12 +140,17 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data, s
     counts = np.bincount(sample.view_index[kept], minlength=sample.n_views)
     splits = min(splits, sample.n_views)
     cores = {spec.core: fit for spec, fit in zip(specs, fits) if spec.field is None and fit is not None}
+
+    def errors_of(spec: Spec, fit: Fit | None):
+        if fit is None:
+            return None
+        return view_errors(_fold_refit(fit, cores.get(spec.core)), fit.result.poses, sample, ~fit.excluded, kept, splits)
+
+    with ThreadPoolExecutor(max_workers=2) as pool:  # the candidates are independent: one per core
+        all_errors = list(pool.map(errors_of, specs, fits))
     candidates = []
-    for spec, fit, reason in zip(specs, fits, why_not):
-        errors = None
+    for spec, fit, reason, errors in zip(specs, fits, why_not, all_errors):
         if fit is not None:
-            errors = view_errors(_fold_refit(fit, cores.get(spec.core)), fit.result.poses, sample, ~fit.excluded,
-                                 kept, splits)
             reason = "" if errors is not None else "its refit without some of the views failed"
         candidates.append(Candidate(spec.name, spec.label, errors, reason,
                                     None if fit is None else int(np.sum(_free(fit.result.model)))))

@@ -414,13 +414,12 @@ def sample_weights(samples: np.ndarray, response: np.ndarray, s: BSplineSettings
 
 def fit_bspline(data: Data, image_size, s: BSplineSettings, progress: Progress) -> Fit:
     """The method: one field fit with the core asked for."""
-    return fit_field(data, image_size, s, s.core, progress)[0]
+    return fit_field(data, image_size, s, s.core, progress)
 
 
 def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: Progress,
-               core_fit: Fit | None = None) -> tuple[Fit, float]:
-    """One fit with this core ("none": the paper's model); also its
-    validation error (px² per corner, ``_field_cv``) at the solution."""
+               core_fit: Fit | None = None) -> Fit:
+    """One fit with this core ("none": the paper's model)."""
     progress("initialise", 0.0)
     if core == "none":
         init = initialise(data, image_size)
@@ -496,11 +495,4 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
     settings["knot_breaks_u"] = breaks[0].tolist()
     settings["knot_breaks_v"] = breaks[1].tolist()
     settings["core_used"] = core
-    # The score at the solution, with the samples' weights recomputed: a
-    # corner may have crossed the pinhole's reach during the fit.
-    final_samples, final_response, final_views = problem.samples(res.model, res.poses, sub)
-    final_weights = sample_weights(final_samples, final_response, s)
-    score = float(_field_cv(problem, res.model.field, final_samples, final_response, final_weights, final_views,
-                            s.lambda_reg, np.array([lam])).score[0])
-    diagnostics["cv"] = score
-    return Fit(res, ~ok, reason, settings, diagnostics, solve_settings=final), float(score)
+    return Fit(res, ~ok, reason, settings, diagnostics, solve_settings=final)

@@ -8,7 +8,7 @@ import { knotsFigure } from "./plots/knots.js";
 import { rectifiedFigure } from "./plots/rectified.js";
 import { uncertaintyFigure } from "./plots/uncertainty.js";
 import { vectorsFigure } from "./plots/vectors.js";
-import { modelChoiceTable, overallTable, qualityTable, smoothingTable, viewsTable } from "./tables.js";
+import { modelChoiceTable, overallTable, qualityTable, restartNote, smoothingTable, viewsTable } from "./tables.js";
 import { renderViewer } from "./viewer.js";
 
 const LABELS = {
@@ -36,7 +36,8 @@ export async function renderResults(job, set) {
   const metrics = document.getElementById("metrics");
   const who = job.method === "compare" ? ` (${job.summary.verdict})` : "";
   metrics.replaceChildren(overallTable(comparison), views.length ? viewsTable(views, `Per view${who}`) : "",
-    calibration ? modelChoiceTable(calibration) : "", calibration ? smoothingTable(calibration) : "");
+    calibration ? restartNote(calibration) : "", calibration ? modelChoiceTable(calibration) : "",
+    calibration ? smoothingTable(calibration) : "");
   const imageSize = heatmap ? heatmap.image_size : set && set.image_size;
   const figs = [];
   if (heatmap) figs.push(heatmapFigure({ heatmap, corners, views }));

@@ -60,6 +60,16 @@ export function modelChoiceTable(calibration) {
   return el("div", { class: "table-wrap" }, table, note);
 }
 
+/** A field fit that walked to a wrong camera: why it was restarted, which fit was kept, and what to do. */
+export function restartNote(calibration) {
+  const r = (calibration.diagnostics || {}).restart;
+  if (!r) return "";
+  const kept = r.kept === "restarted" ? "the restarted fit was kept" : "the restart did no better; the first fit was kept";
+  return el("p", { id: "restart-note", class: r.warning ? "warning" : "muted" },
+    `The field's fit was restarted from a parametric camera: ${r.reason}; ${kept} ` +
+    `(${num(r.first.rmse, 3)} px, then ${num(r.restarted.rmse, 3)} px).` + (r.warning ? ` Warning: ${r.warning}.` : ""));
+}
+
 /** The B-spline's knot-grid and bandwidth choice: error on views left out of the field's fit (lower is better). */
 export function smoothingTable(calibration) {
   const curve = (calibration.diagnostics || {}).smoothing_curve || [];

@@ -167,12 +167,21 @@ def side_by_side_sets(kinds, holdout_every: int, real: str):
     for k in kinds:
         s = synth.generate(k)
         yield k, s.train, thin(s.holdout, holdout_every) if holdout_every else s.holdout
-    folder = DATA / real if real else None
-    if folder and folder.is_dir():
-        board = next(folder.glob("*.dsc"))
-        yield real, babelcalib.load(folder / "train", board), babelcalib.load(folder / "test", board)
-    elif real:
-        print(f"(real set {real} not found under {DATA}: skipped)")
+    if real:
+        pair = load_real(real)
+        if pair:
+            yield (real, *pair)
+        else:
+            print(f"(real set {real} not found under {DATA}: skipped)")
+
+
+def load_real(name: str = REAL_SET) -> tuple[Observations, Observations] | None:
+    """(train, test) of a BabelCalib set of ../shared/data (its authors' split), or None if absent."""
+    folder = DATA / name
+    if not folder.is_dir():
+        return None
+    board = next(folder.glob("*.dsc"))
+    return babelcalib.load(folder / "train", board), babelcalib.load(folder / "test", board)
 
 
 def freecal_bspline(train, test, **settings) -> dict:

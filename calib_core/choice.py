@@ -93,9 +93,13 @@ class ModelChoice:
         }
 
 
-def choose(candidates: list[Candidate], counts: np.ndarray, tolerance: float = TOLERANCE, how: str = "") -> ModelChoice:
+def choose(candidates: list[Candidate], counts: np.ndarray, tolerance: float = TOLERANCE, how: str = "",
+           paired: bool = False) -> ModelChoice:
     """The one-standard-error choice among ``candidates`` (simplest first);
-    ValueError if none was validated."""
+    ValueError if none was validated. ``paired``: a candidate is within the
+    noise when its excess over the lowest, view by view, is within one
+    standard error of that excess (for candidates that share the views'
+    noise, as knot grids of one field do)."""
     counts = np.asarray(counts, dtype=float)
     scores = np.array([np.inf if c.view_sse is None else c.view_sse.sum() / counts.sum() for c in candidates])
     if not np.isfinite(scores).any():
@@ -105,5 +109,16 @@ def choose(candidates: list[Candidate], counts: np.ndarray, tolerance: float = T
     per_view = candidates[best].view_sse * n / counts.sum()  # its mean is scores[best]
     standard_error = float(np.std(per_view, ddof=1) / np.sqrt(n)) if n > 1 else np.inf
     limit = scores[best] + max(tolerance * scores[best], standard_error)
-    chosen = int(np.flatnonzero(scores <= limit)[0])
+    if paired:
+        within = []
+        for k, c in enumerate(candidates):
+            if c.view_sse is None:
+                within.append(False)
+                continue
+            excess = (c.view_sse - candidates[best].view_sse) * n / counts.sum()
+            se = np.std(excess, ddof=1) / np.sqrt(n) if n > 1 else np.inf
+            within.append(excess.mean() <= max(tolerance * scores[best], se))
+        chosen = int(np.flatnonzero(within)[0])
+    else:
+        chosen = int(np.flatnonzero(scores <= limit)[0])
     return ModelChoice(candidates, counts, chosen, best, standard_error, tolerance, how)

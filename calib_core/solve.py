@@ -341,3 +341,13 @@ def _state(model, poses, settings) -> np.ndarray:
     if not settings.fix_poses:
         parts.append(poses.ravel())
     return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def residuals_and_jacobian(model, poses: np.ndarray, data: Data, settings: SolveSettings | None = None):
+    """(r, J) at this model and poses: the residual vector (2 rows per point,
+    x then y, then the model's prior rows) and its CSR Jacobian over
+    [free model parameters | poses], as the solver sees them."""
+    settings = settings or SolveSettings()
+    if settings.free_params is None:
+        settings = dataclasses.replace(settings, free_params=model.free_mask())
+    return _assemble(model, poses, data, settings)

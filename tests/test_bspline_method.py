@@ -46,7 +46,8 @@ def test_result_carries_diagnostics_and_settings(results):
     assert cal.settings["chosen"] == "bspline" and d["model_choice"]["chosen"] == "bspline"
     assert d["design"]["rank"] == d["design"]["n_controls"] and d["design"]["zero_columns"] >= 0
     assert d["solver"]["status"] in ("converged", "stalled") and d["solver"]["iterations"] > 0
-    assert d["smoothing_curve"] and all("cv" in c for c in d["smoothing_curve"])
+    scored = [c for c in d["smoothing_curve"] if "skipped" not in c]
+    assert len(scored) >= 2 and all("cv" in c and "validation" in c for c in scored)
     assert cal.settings["gauge"]["point"] is not None and cal.settings["intervals_used"]
 
 
@@ -147,10 +148,10 @@ def test_a_core_that_cannot_fit_the_corners_leaves_the_others_in_the_running(mon
 
     real = bspline_method.fit_opencv
 
-    def five_coefficients_diverge(data, image_size, s, progress):
+    def five_coefficients_diverge(data, image_size, s, progress, *nested):
         if s.n_coefficients == 5:
             raise DataError("the OpenCV model diverged on these corners")
-        return real(data, image_size, s, progress)
+        return real(data, image_size, s, progress, *nested)
 
     monkeypatch.setattr(bspline_method, "fit_opencv", five_coefficients_diverge)
     cal = calibrate(synthetic("radial").train)
@@ -161,15 +162,17 @@ def test_a_core_that_cannot_fit_the_corners_leaves_the_others_in_the_running(mon
 
 
 def test_a_set_too_small_for_a_field_gets_a_core_alone_and_names_why():
-    """57 corners cannot carry the paper's field even on its coarsest grid: the
-    default keeps a parametric model and says why the field is out; asked
-    for the field alone, the error says what to do."""
+    """57 corners can barely carry the paper's field: the default does not
+    take it (if it fits at all, it predicts left-out views far worse); asked
+    for the field on a fine grid, the error says what to do."""
     s = synthetic("radial")
     obs = Observations(s.train.image_size, [v.subset(np.arange(len(v)) % 12 == 0) for v in s.train.views[:4]],
                        s.train.board)
     cal = calibrate(obs)
-    paper = next(c for c in cal.diagnostics["model_choice"]["candidates"] if c["name"] == "bspline")
-    assert paper["validation_rmse"] is None and "unknowns" in paper["error"] and not paper["chosen"]
-    assert cal.model.kind in ("opencv", "fisheye")
+    choice = cal.diagnostics["model_choice"]["candidates"]
+    paper = next(c for c in choice if c["name"] == "bspline")
+    best = next(c for c in choice if c["chosen"])
+    assert not paper["chosen"] and ("unknowns" in paper.get("error", "")
+                                    or paper["validation_rmse"] > 2 * best["validation_rmse"])
     with pytest.raises(DataError, match="equations for .* unknowns: add views, or use fewer knot intervals"):
         calibrate(obs, "bspline", knots="uniform", intervals=15, core="none")

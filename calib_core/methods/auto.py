@@ -6,8 +6,10 @@ the rational model, the paper's B-spline field, and a field over the
 rational core. A lens past the pinhole's reach (corners beyond ~89° off
 axis) gets Kannala–Brandt and a field over it instead, the only models that
 represent every corner. Every candidate that can fit the corners is scored
-(``crossval.view_errors``) and the simplest within the noise of the lowest
-is kept (``choice.choose``); it is returned as its own method returns it, so
+on each view left out of its fit (``crossval.linearised_view_errors``; a
+field over a core holds the core's coefficients there as its fit does, as
+fitted to every view, which flatters it a little on very small sets) and
+the simplest within the noise of the lowest is kept (``choice.choose``); it is returned as its own method returns it, so
 the calibration is written with that model's type (``opencv``, ``fisheye``,
 ``bspline``, ``hybrid``) and ``settings.chosen`` names it.
 
@@ -24,29 +26,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..choice import Candidate, ModelChoice, choose
-from ..crossval import view_errors
+from ..crossval import linearised_view_errors
 from ..errors import DataError, SettingsError
 from ..init import initialise
-from ..models.hybrid import HybridModel
-from ..solve import Data, SolveSettings, levenberg_marquardt, spread_views
+from ..solve import Data, spread_views
 from .bspline import BSplineSettings, fit_core, fit_field, ideal_samples
 from .common import Fit, Progress, no_progress, scaled
-
-# Solver iterations of a fold's refit, from the full fit: leaving out a fold
-# moves the solution a little, and a few steps reach it. Measured against 50
-# (converged) on the five synthetic kinds: every score within 1 %, the same
-# choice (tests/test_model_choice.py); 2 steps moved the rational model's
-# score on the decentred lens by 4 %.
-FOLD_ITERATIONS = 5
 
 
 @dataclass
 class AutoSettings:
-    splits: int = 5  # folds of the views for the validation
     decision_views: int = 20  # above this many views, the choice is made on this many (spread over the set)
 
     def validate(self) -> None:
-        for name, low, high in (("splits", 2, 20), ("decision_views", 3, 1000)):
+        for name, low, high in (("decision_views", 3, 1000),):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
                 raise SettingsError(f"{name}: expected a whole number from {low} to {high}, got {value!r}")
@@ -85,14 +78,14 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
     if all(f is None for f in fits):
         raise DataError("no model fits these corners: " + "; ".join(dict.fromkeys(e for e in why_not if e)))
     progress("model choice", 0.8 * share)
-    choice = _validate(specs, fits, why_not, sample, s.splits)
+    choice = _validate(specs, fits, why_not, sample)
     if wide:
         choice.how += f"; {int((~seen).sum())} corners lie past the pinhole's reach, so only models that reach them ran"
     if sample is not data:
         choice.how += f"; decided on {sample.n_views} of the {data.n_views} views"
     spec = specs[choice.chosen]
     fit = fits[choice.chosen] if sample is data else _fit_spec(spec, data, image_size, {}, scaled(progress, share, 1.0))
-    settings = {**fit.settings, "chosen": spec.name, "splits": s.splits, "decision_views": s.decision_views}
+    settings = {**fit.settings, "chosen": spec.name, "decision_views": s.decision_views}
     return dataclasses.replace(fit, settings=settings, diagnostics={**fit.diagnostics, "model_choice": choice.to_json()})
 
 
@@ -122,7 +115,7 @@ def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
                 continue
             part = scaled(progress, i / len(specs), (i + 1) / len(specs))
             if spec.core not in cores:
-                cores[spec.core] = _try(why_not, i, fit_core, sample, image_size, spec.core, part)
+                cores[spec.core] = _try(why_not, i, fit_core, sample, image_size, spec.core, part, cores.get("zhang"))
             if cores[spec.core] is None:
                 why_not[i] = why_not[i] or f"its {spec.core} core cannot fit these corners"
                 continue
@@ -132,58 +125,32 @@ def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
     return fits, why_not
 
 
-def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data, splits: int) -> ModelChoice:
-    """Each candidate's validation error per view over ``splits`` folds of
-    the views (``crossval.view_errors``), on the corners every candidate
+def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -> ModelChoice:
+    """Each candidate's error on each view left out of its fit
+    (``crossval.linearised_view_errors``), on the corners every candidate
     could use, and the one-standard-error choice among them."""
     kept = np.logical_and.reduce([~f.excluded for f in fits if f is not None])
     counts = np.bincount(sample.view_index[kept], minlength=sample.n_views)
-    splits = min(splits, sample.n_views)
-    cores = {spec.core: fit for spec, fit in zip(specs, fits) if spec.field is None and fit is not None}
-
-    def errors_of(spec: Spec, fit: Fit | None):
-        if fit is None:
-            return None
-        return view_errors(_fold_refit(fit, cores.get(spec.core)), fit.result.poses, sample, ~fit.excluded, kept, splits)
-
-    with ThreadPoolExecutor(max_workers=2) as pool:  # the candidates are independent: one per core
-        all_errors = list(pool.map(errors_of, specs, fits))
     candidates = []
-    for spec, fit, reason, errors in zip(specs, fits, why_not, all_errors):
+    for spec, fit, reason in zip(specs, fits, why_not):
+        errors = None
         if fit is not None:
-            reason = "" if errors is not None else "its refit without some of the views failed"
+            used = ~fit.excluded
+            own = Data(sample.object_points[used], sample.image_points[used], sample.view_index[used], sample.n_views)
+            try:
+                errors = linearised_view_errors(fit.result.model, fit.result.poses, own, kept[used])
+            except np.linalg.LinAlgError:
+                reason = "its fit without some view is undetermined"
         candidates.append(Candidate(spec.name, spec.label, errors, reason,
                                     None if fit is None else int(np.sum(_free(fit.result.model)))))
-    if all(c.view_sse is None for c in candidates):
-        raise DataError("no model could be validated on views left out of its fit: add views")
-    how = (f"validation error per axis over {splits} folds of the {sample.n_views} views: each candidate "
-           "refit without a fold's views, then those views predicted with only their poses refit")
+    how = (f"error per axis on each of the {sample.n_views} views left out of the fit (one Gauss-Newton step "
+           "from the full fit without the view, then only the view's pose refit)")
     return choose(candidates, counts, how=how)
 
 
 def _free(model) -> np.ndarray:
     mask = model.free_mask()
     return np.ones(model.n_params, dtype=bool) if mask is None else mask
-
-
-def _fold_refit(fit: Fit, core: Fit | None):
-    """How a fit is refit to one fold's views: by the solver that fitted it,
-    from the full fit's camera and poses. A field over a core refits the core
-    alone first (``core``, as fitted alone), as the method does: its joint
-    fit holds the core's coefficients, and held as fitted to every view they
-    would flatter it."""
-    def settings(f: Fit) -> SolveSettings:
-        return dataclasses.replace(f.solve_settings or SolveSettings(), max_iterations=FOLD_ITERATIONS)
-
-    model = fit.result.model
-
-    def refit(train: Data, poses: np.ndarray):
-        if isinstance(model, HybridModel):
-            alone = levenberg_marquardt(core.result.model, poses, train, settings(core))
-            start = HybridModel(alone.model, model.field, model.lambda_reg, model.lambda_smooth, model.gauge_point)
-            return levenberg_marquardt(start, alone.poses, train, settings(fit)).model
-        return levenberg_marquardt(model, poses, train, settings(fit)).model
-    return refit
 
 
 def _try(why_not: list[str], i: int, fit_fn, *args):

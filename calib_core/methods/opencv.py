@@ -96,7 +96,10 @@ def best_of(starts, data: Data, settings: SolveSettings):
     return leader
 
 
-def fit_opencv(data: Data, image_size, s: OpenCVSettings, progress: Progress) -> Fit:
+def fit_opencv(data: Data, image_size, s: OpenCVSettings, progress: Progress, five: Fit | None = None) -> Fit:
+    """OpenCV's model with ``s.n_coefficients``, converged from several starts;
+    ``five``: the 5-coefficient fit of the same corners, if already made (a
+    start of the larger models)."""
     progress("initialise", 0.0)
     init = initialise(data, image_size)
     ok = pinhole_visible(init.poses, data)
@@ -119,10 +122,11 @@ def fit_opencv(data: Data, image_size, s: OpenCVSettings, progress: Progress) ->
     if s.n_coefficients > 5:
         # Nested models: start also from the best 5-coefficient fit, so that
         # rational is never worse than zhang on the same corners.
-        five = levenberg_marquardt(OpenCVModel([fx, fy, cx, cy, 0.0], seed_coefficients(xn, xd, 5)), init.poses, sub, settings)
+        nested = five.result if five is not None and np.array_equal(five.excluded, ~ok) else levenberg_marquardt(
+            OpenCVModel([fx, fy, cx, cy, 0.0], seed_coefficients(xn, xd, 5)), init.poses, sub, settings)
         k = np.zeros(s.n_coefficients)
-        k[:5] = five.model.coefficients
-        starts.append((OpenCVModel(five.model.intrinsics, k), five.poses))
+        k[:5] = nested.model.coefficients
+        starts.append((OpenCVModel(nested.model.intrinsics, k), nested.poses))
     res = best_of(starts, sub, settings)
     if not np.all(np.isfinite(res.residuals)):
         raise DataError("the OpenCV model diverged on these corners (non-finite projections); "

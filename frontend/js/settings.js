@@ -15,7 +15,7 @@ const BSPLINE = [
   { key: "core", label: "Parametric core", options: ["none", "rational", "fisheye"], def: "none" },
   { key: "max_iterations", label: "Max iterations", placeholder: "500", type: "number" },
 ];
-const AUTO = [{ key: "splits", label: "Validation folds", placeholder: "5", type: "number" }];
+const AUTO = [{ key: "decision_views", label: "Views the choice is made on", placeholder: "20", type: "number" }];
 const COMMON = [{ key: "max_iterations", label: "Max iterations", placeholder: "default", type: "number" }];
 const COMPARE = [{ key: "splits", label: "Cross-validation folds", placeholder: "5", type: "number" }];
 

@@ -84,16 +84,23 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
     if sample is not data:
         choice.how += f"; decided on {sample.n_views} of the {data.n_views} views"
     spec = specs[choice.chosen]
-    fit = fits[choice.chosen] if sample is data else _fit_spec(spec, data, image_size, {}, scaled(progress, share, 1.0))
+    fit = fits[choice.chosen]
+    if sample is not data:  # the chosen model on every view, with the grid and smoothing the choice found
+        grid = {} if spec.field is None else {"intervals": tuple(fit.settings["intervals_used"]),
+                                              "lambda_smooth": float(fit.settings["lambda_smooth"])}
+        fit = _fit_spec(spec, data, image_size, {}, scaled(progress, share, 1.0), **grid)
     settings = {**fit.settings, "chosen": spec.name, "decision_views": s.decision_views}
     return dataclasses.replace(fit, settings=settings, diagnostics={**fit.diagnostics, "model_choice": choice.to_json()})
 
 
-def _fit_spec(spec: Spec, data: Data, image_size, cores: dict[str, Fit | None], progress: Progress) -> Fit:
-    """One candidate fitted to ``data`` (``cores``: its core fitted alone, if done)."""
+def _fit_spec(spec: Spec, data: Data, image_size, cores: dict[str, Fit | None], progress: Progress,
+              **field_settings) -> Fit:
+    """One candidate fitted to ``data`` (``cores``: its core fitted alone, if
+    done; ``field_settings``: the field's, default its own search)."""
     if spec.field is None:
         return cores.get(spec.core) or fit_core(data, image_size, spec.core, progress)
-    s = BSplineSettings(core=spec.field)
+    s = BSplineSettings(core=spec.field, **field_settings)
+    s.validate()
     return fit_field(data, image_size, s, spec.field, progress, cores.get(spec.core))
 
 

@@ -227,6 +227,7 @@ def test_browser_with_a_token_asks_once_then_sends_it_everywhere(browser, guarde
     assert rows.count() == 5 and page.locator("#metrics-model-choice tbody tr.best").count() == 1
     assert "Model chosen:" in page.text_content("#metrics-model-choice caption")
     assert "standard error" in page.text_content("#metrics-model-choice + p")
+    page.locator("#metrics-model-choice").locator("xpath=..").screenshot(path=shots / "08-model-choice.png")
     # <img src> and links cannot send headers: they carry ?token=
     first = page.locator("#images img").first
     first.scroll_into_view_if_needed()

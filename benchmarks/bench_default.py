@@ -235,7 +235,7 @@ def speed(a) -> None:
                     f"quicker mrcal / fixed (≥ {TARGET_SPEEDUP:g})", "verdict"]
     markdown(headers, rows)
     if not python:
-        print("mrcal: skipped (set FREECAL_MRCAL_PYTHON to the python of a venv with mrcal; README, "
+        print("mrcal: skipped (set FREECAL_MRCAL_PYTHON to the python of a venv with mrcal; docs/methods.md, "
               "\"Side by side with mrcal\")\n")
     else:
         print("mrcal splined: SPLINED_STEREOGRAPHIC from OPENCV8's poses (its time includes OPENCV8's); "

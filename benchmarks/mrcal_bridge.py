@@ -2,7 +2,7 @@
 under mrcal's interpreter and read back its residuals.
 
 mrcal's wheels need Python ≥ 3.12 and this project runs on 3.11, so mrcal
-lives in its own venv (README, "Side by side with mrcal"), named by
+lives in its own venv (docs/methods.md, "Side by side with mrcal"), named by
 ``FREECAL_MRCAL_PYTHON``; the two talk through an npz file.
 """
 from __future__ import annotations

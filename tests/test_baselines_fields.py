@@ -1,4 +1,4 @@
-"""The residual fields against their documented formulas (README, models/mls.py,
+"""The residual fields against their documented formulas (docs/methods.md, models/mls.py,
 models/tps.py), computed point by point the slow, obvious way."""
 import numpy as np
 

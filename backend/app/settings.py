@@ -46,7 +46,7 @@ class Settings:
     viewer: bool = True
     viewer_port: int = 8080
     viewer_host: str = "127.0.0.1"
-    # Hardening (README "Security" and "Limits"):
+    # Hardening (docs/service.md, "Security" and "Limits"):
     # token: when set, every /api request needs "Authorization: Bearer <token>" or ?token=<token>.
     token: str = ""
     # cors_origins: comma-separated origins allowed to call the API from another site ("" = none, closed).

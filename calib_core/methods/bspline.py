@@ -498,7 +498,9 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
 
         m, factor, lam, breaks, curve = _choose_smoothing(problem, samples, response, weights, views, s, joint)
         progress("control points", 0.5)
-        model = _fitted(problem, breaks, s.lambda_reg, lam, first.model, samples, response, weights)
+        chosen = joint_fits.get((breaks[0].tobytes(), breaks[1].tobytes(), lam))  # fitted while choosing
+        model = chosen.model if chosen is not None else _fitted(problem, breaks, s.lambda_reg, lam, first.model,
+                                                                samples, response, weights)
         poses = first.poses
 
     field = model.field

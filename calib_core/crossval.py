@@ -9,11 +9,13 @@ a calibration per fold.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.linalg
 
 from .gram import gram
-from .solve import Data, residuals_and_jacobian
+from .solve import Data, SolveSettings, residuals_and_jacobian
 
 
 def folds(n_views: int, splits: int) -> list[np.ndarray]:
@@ -21,12 +23,23 @@ def folds(n_views: int, splits: int) -> list[np.ndarray]:
     return [np.arange(k, n_views, splits) for k in range(splits)]
 
 
-def linearised_view_errors(model, poses: np.ndarray, data: Data, scored: np.ndarray | None = None) -> np.ndarray:
-    """(n_views,) sum of squared residuals (px², both axes) over the
-    ``scored`` points (bool mask; default all) of each view when it is left
-    out of the fit, in closed form: one Gauss-Newton step from the full
-    solution (``model``, ``poses``, at the minimum on ``data``) without the
-    view, then the view predicted with only its own pose refit.
+@dataclass
+class ViewErrors:
+    """Leave-one-view-out in closed form: ``errors`` (n_views,) squared
+    left-out residuals per view (px², both axes) and ``steps`` (n_views,
+    n_free) the free model parameters' move when each view leaves."""
+
+    errors: np.ndarray
+    steps: np.ndarray
+
+
+def linearised_view_errors(model, poses: np.ndarray, data: Data, scored: np.ndarray | None = None,
+                           held_steps: np.ndarray | None = None) -> ViewErrors:
+    """Each view's squared residuals over its ``scored`` points (bool mask;
+    default all) when it is left out of the fit, in closed form: one
+    Gauss-Newton step from the full solution (``model``, ``poses``, at the
+    minimum on ``data``) without the view, then the view predicted with only
+    its own pose refit.
 
     With the poses eliminated (the Schur complement S of the normal
     equations over the model parameters), leaving view v out removes its
@@ -35,19 +48,36 @@ def linearised_view_errors(model, poses: np.ndarray, data: Data, scored: np.ndar
     zero), and the view's residuals become r_v + A_v Δ less what its pose
     absorbs, the projection onto its pose columns B_v. One small solve per
     view: the cost of a solver iteration or two for the whole validation,
-    where refits cost a few iterations per fold."""
-    r, jac = residuals_and_jacobian(model, poses, data)
+    where refits cost a few iterations per fold.
+
+    ``held_steps`` (n_views, n_held): for a model whose held parameters
+    (those outside ``free_mask``, e.g. a hybrid's core coefficients) were
+    fitted to the same views in a first stage, their move δc when each view
+    leaves that stage. The free parameters then also answer it,
+    Δ = (S − S_v)⁻¹ (A_vᵀ r_v − (T − T_v) δc) with T the pose-reduced cross
+    block of free and held columns, and the view's residuals gain C_v δc.
+    Without it a two-stage model is scored with the left-out view still
+    inside its first stage, which flatters it on small sets."""
+    free = model.free_mask()
+    held = held_steps is not None and free is not None and not free.all()
+    if held:
+        r, full = residuals_and_jacobian(model, poses, data, SolveSettings(free_params=np.ones(model.n_params, bool)))
+        keep = np.concatenate([np.flatnonzero(free), model.n_params + np.arange(6 * data.n_views)])
+        jac, jc = full[:, keep].tocsr(), full[:, np.flatnonzero(~free)].tocsr()
+    else:
+        r, jac = residuals_and_jacobian(model, poses, data)
     n_model = jac.shape[1] - 6 * data.n_views
-    jm = jac[:, :n_model]
-    s = gram(jm.tocsr())  # prior rows included: they stay when a view leaves
+    s = gram(jac[:, :n_model].tocsr())  # prior rows included: they stay when a view leaves
     order = np.argsort(data.view_index, kind="stable")
     rows = np.column_stack([2 * order, 2 * order + 1]).ravel()  # the points' rows, view by view
     by_view = jac[rows].tocsr()
     pose_block = by_view[:, n_model:].toarray()
+    held_block = jc[rows].toarray() if held else None
     r_view = r[rows]
     weight = np.repeat(np.ones(data.n_points, dtype=bool) if scored is None else scored, 2)[rows]
     bounds = np.concatenate([[0], np.cumsum(2 * np.bincount(data.view_index, minlength=data.n_views))])
     parts = []
+    cross = 0.0
     for v in range(data.n_views):
         span = slice(bounds[v], bounds[v + 1])
         a = by_view[span, :n_model].toarray()
@@ -56,13 +86,24 @@ def linearised_view_errors(model, poses: np.ndarray, data: Data, scored: np.ndar
         nmv = a.T @ b
         coupling = nmv @ np.linalg.solve(nvv, nmv.T)
         s -= coupling
-        parts.append((span, a, b, nvv, a.T @ a - coupling))
+        c = t = None
+        if held:
+            c = held_block[span]
+            t = a.T @ c - nmv @ np.linalg.solve(nvv, b.T @ c)
+            cross = cross + t
+        parts.append((span, a, b, nvv, a.T @ a - coupling, c, t))
     errors = np.zeros(data.n_views)
+    steps = np.zeros((data.n_views, n_model))
     ridge = 1e-12 * np.trace(s) / max(n_model, 1) * np.eye(n_model)
-    for v, (span, a, b, nvv, share) in enumerate(parts):
+    for v, (span, a, b, nvv, share, c, t) in enumerate(parts):
         rv = r_view[span]
-        step = scipy.linalg.solve(s - share + ridge, a.T @ rv, assume_a="pos", check_finite=False)
-        e = rv + a @ step
+        rhs = a.T @ rv
+        if held:
+            rhs -= (cross - t) @ held_steps[v]
+        steps[v] = scipy.linalg.solve(s - share + ridge, rhs, assume_a="pos", check_finite=False)
+        e = rv + a @ steps[v]
+        if held:
+            e += c @ held_steps[v]
         e -= b @ np.linalg.solve(nvv, b.T @ e)
         errors[v] = float(np.sum(e[weight[span]] ** 2))
-    return errors
+    return ViewErrors(errors, steps)

@@ -182,11 +182,14 @@ def print_choice(choice: dict) -> None:
     """The model choice in words, and the score table that made it."""
     print(f"model chosen: {choice['summary']}")
     print(f"rule: {choice['rule']}; {choice['how']}")
-    table(["candidate", "validation rmse per axis [px]", "parameters", "chosen"],
-          [(c["label"], "—" if c["validation_rmse"] is None else c["validation_rmse"], c["n_params"] or "—",
-            "*" if c["chosen"] else c.get("error", "")) for c in choice["candidates"]])
-    print(f"one standard error of the lowest: ±{choice['standard_error_rmse']:.4f} px; candidates up to "
-          f"{choice['threshold_rmse']:.4f} px count as equally good")
+    table(["candidate", "validation rmse per axis [px]", "± one standard error of its excess", "parameters", "chosen"],
+          [(c["label"], _or_dash(c["validation_rmse"]), _or_dash(c.get("standard_error_rmse")), c["n_params"] or "—",
+            "*" if c["chosen"] else c.get("error", "") or ("within the noise" if c.get("within_noise") else ""))
+           for c in choice["candidates"]])
+
+
+def _or_dash(x):
+    return "—" if x is None else x
 
 
 def _curve_row(c: dict, chosen: list) -> tuple:

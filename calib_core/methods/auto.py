@@ -139,13 +139,19 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -
     kept = np.logical_and.reduce([~f.excluded for f in fits if f is not None])
     counts = np.bincount(sample.view_index[kept], minlength=sample.n_views)
     candidates = []
+    core_steps: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # core → (its free parameters, their moves per view)
     for spec, fit, reason in zip(specs, fits, why_not):
         errors = None
         if fit is not None:
             used = ~fit.excluded
             own = Data(sample.object_points[used], sample.image_points[used], sample.view_index[used], sample.n_views)
+            model = fit.result.model
             try:
-                errors = linearised_view_errors(fit.result.model, fit.result.poses, own, kept[used])
+                held = _held_steps(model, core_steps.get(spec.core)) if spec.field is not None else None
+                lovo = linearised_view_errors(model, fit.result.poses, own, kept[used], held)
+                errors = lovo.errors
+                if spec.field is None:
+                    core_steps[spec.core] = (np.flatnonzero(_free(model)), lovo.steps)
             except np.linalg.LinAlgError:
                 reason = "its fit without some view is undetermined"
         candidates.append(Candidate(spec.name, spec.label, errors, reason,
@@ -153,6 +159,22 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -
     how = (f"error per axis on each of the {sample.n_views} views left out of the fit (one Gauss-Newton step "
            "from the full fit without the view, then only the view's pose refit)")
     return choose(candidates, counts, how=how)
+
+
+def _held_steps(model, core: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray | None:
+    """A field over a core holds the core's coefficients where the core's own
+    fit put them: their move when each view leaves that fit, as
+    ``linearised_view_errors`` takes it (None when the core was not scored)."""
+    if core is None:
+        return None
+    free_in_core, steps = core
+    column = {p: j for j, p in enumerate(free_in_core)}
+    held = np.flatnonzero(~_free(model))  # a hybrid's parameters start with its core's
+    out = np.zeros((len(steps), len(held)))
+    for k, p in enumerate(held):
+        if p in column:
+            out[:, k] = steps[:, column[p]]
+    return out
 
 
 def _free(model) -> np.ndarray:

@@ -361,28 +361,17 @@ def _choose_smoothing(problem: FieldProblem, samples, response, weights, views, 
                           "cv": float(cv.score[cv.best]), "validation": float(sse.sum() / units.sum()),
                           "dof": float(cv.dof[cv.best])})
             options.append((sum(intervals), m, factor, lam, sse, units, breaks))
+            # a finer grid earns its keep when the rule would take it over every coarser one
             so_far = choose([Candidate("", "", o[4]) for o in options], units)
-            stale = 0 if so_far.mse(len(options) - 1) < _within(so_far) else stale + 1
+            stale = 0 if so_far.chosen == len(options) - 1 else stale + 1
     if not options:  # no grid the corners can carry: the coarsest, for the fit's own error to say so
         m = counts[0]
         breaks = knots.breaks_for(samples, weights, problem.domain, s.knot_settings(m, factors[0]), problem.footprint)
         return m, factors[0], 1.0, breaks, curve
     options.sort(key=lambda o: o[0])
-    # Grids of one field share the views' noise: compared view by view.
-    chosen = choose([Candidate(str(o[1]), "", o[4]) for o in options], options[0][5], tolerance=0.0,
-                    paired=True).chosen
+    chosen = choose([Candidate(str(o[1]), "", o[4]) for o in options], options[0][5]).chosen
     _, m, factor, lam, _, _, breaks = options[chosen]
     return m, factor, lam, breaks, curve
-
-
-def _within(choice) -> float:
-    """The error a new grid must beat to count as clearly better than the
-    best before it: the best's, less its noise band."""
-    previous = [choice.mse(k) for k in range(len(choice.candidates) - 1)]
-    if not previous:
-        return np.inf
-    best = min(previous)
-    return best - max(choice.tolerance * best, choice.standard_error)
 
 
 def wrong_camera(res, reference, data: Data) -> str:
@@ -494,7 +483,7 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
                 return None, units
             fitted = levenberg_marquardt(start_model, first.poses, sub, final)
             joint_fits[(grid_breaks[0].tobytes(), grid_breaks[1].tobytes(), grid_lam)] = fitted
-            return linearised_view_errors(fitted.model, fitted.poses, sub), units
+            return linearised_view_errors(fitted.model, fitted.poses, sub).errors, units
 
         m, factor, lam, breaks, curve = _choose_smoothing(problem, samples, response, weights, views, s, joint)
         progress("control points", 0.5)

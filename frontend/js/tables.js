@@ -47,16 +47,15 @@ export function modelChoiceTable(calibration) {
   if (!choice) return "";
   const table = el("table", { id: "metrics-model-choice" },
     el("caption", {}, `Model chosen: ${choice.summary}`),
-    el("thead", {}, el("tr", {}, ["candidate", "validation rmse per axis [px]", "parameters", ""]
-      .map((h) => el("th", { scope: "col" }, h)))),
+    el("thead", {}, el("tr", {}, ["candidate", "validation rmse per axis [px]", "± one standard error of its excess",
+      "parameters", ""].map((h) => el("th", { scope: "col" }, h)))),
     el("tbody", {}, choice.candidates.map((c) => el("tr", { class: c.chosen ? "best" : "" },
       el("th", { scope: "row" }, c.label),
       el("td", {}, c.validation_rmse == null ? "—" : num(c.validation_rmse, 4)),
+      el("td", {}, c.standard_error_rmse == null ? "—" : `± ${num(c.standard_error_rmse, 4)}`),
       el("td", {}, c.n_params == null ? "—" : num(c.n_params)),
-      el("td", {}, c.chosen ? "chosen" : c.error || "")))));
-  const note = el("p", { class: "muted" }, `How: ${choice.how}. Rule: ${choice.rule}. One standard error of the ` +
-    `lowest: ± ${num(choice.standard_error_rmse, 4)} px, so candidates up to ${num(choice.threshold_rmse, 4)} px ` +
-    "count as equally good.");
+      el("td", {}, c.chosen ? "chosen" : c.error || (c.within_noise ? "within the noise" : ""))))));
+  const note = el("p", { class: "muted" }, `How: ${choice.how}. Rule: ${choice.rule}.`);
   return el("div", { class: "table-wrap" }, table, note);
 }
 

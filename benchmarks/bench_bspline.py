@@ -15,8 +15,9 @@ import time
 
 import numpy as np
 
-from calib_core import calibrate, evaluate, synth
-from calib_core.metrics import noise_floor
+from calib_core import calibrate, synth
+from calib_core.evaluation.evaluate import evaluate
+from calib_core.evaluation.metrics import noise_floor
 
 from backend.commands.output import table as print_table
 

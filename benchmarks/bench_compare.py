@@ -21,13 +21,15 @@ import time
 import numpy as np
 
 from backend.commands.output import table as print_table
-from calib_core import babelcalib, metrics, synth
-from calib_core.compare import compare, validation_residuals
+from calib_core.detection import babelcalib
+from calib_core.evaluation import metrics
+from calib_core import synth
+from calib_core.evaluation.compare import compare, validation_residuals
 from calib_core.errors import CalibError
 from calib_core.observations import Observations, View
 from calib_core.pipeline import calibrate, to_data
-from calib_core.solve import Data, SolveSettings, levenberg_marquardt
-from calib_core.uncertainty import aligned_projection, projection_uncertainty
+from calib_core.fitting.solve import Data, SolveSettings, levenberg_marquardt
+from calib_core.evaluation.uncertainty import aligned_projection, projection_uncertainty
 
 from . import mrcal_bridge
 from .bench_bspline import warm_up
@@ -83,7 +85,7 @@ def uncertainty_check(kind: str, realisations: int, sigma: float = 0.3, seed: in
     """Predicted per-pixel projection spread (one noisy calibration, σ from its
     residuals) against the spread over ``realisations`` noise draws (the knots
     held: the covariance is of the fit, not of the knot placement). Directions
-    are fixed in the boards' frames (mrcal's convention, ``uncertainty.py``)."""
+    are fixed in the boards' frames (mrcal's convention, ``calib_core/evaluation/uncertainty.py``)."""
     rng = np.random.default_rng(seed)
     clean = synth.generate(kind, sigma=0.0)
     data, _, _ = to_data(clean.train)

@@ -6,7 +6,7 @@ paper's fixed grid and mrcal's splined model, and how its time scales.
         [--kinds radial,...] [--seeds 0,1,2] [--views 10] [--sigma 0.3] [--quick]
 
 - accuracy: per synthetic kind and seed, the default's hold-out rmse (model held,
-  poses refit: ``calib_core.evaluate``) against a grid search of every fixed
+  poses refit: ``calib_core.evaluation.evaluate``) against a grid search of every fixed
   configuration (the parametric models, and the B-spline field on cores none and
   rational × intervals × λ_smooth), run on two processes. Targets: default / best
   fixed ≤ 1.10; default / best parametric ≤ 1.05 on the lenses a parametric model
@@ -39,8 +39,8 @@ from threadpoolctl import threadpool_limits
 
 from calib_core import synth
 from calib_core.errors import CalibError
-from calib_core.evaluate import evaluate
-from calib_core.metrics import noise_floor
+from calib_core.evaluation.evaluate import evaluate
+from calib_core.evaluation.metrics import noise_floor
 from calib_core.pipeline import calibrate
 
 from . import mrcal_bridge

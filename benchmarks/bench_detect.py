@@ -21,11 +21,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from calib_core import render, synth
+from calib_core.synth import render
+from calib_core import synth
 from calib_core.board import BoardSpec
-from calib_core.corner_error import corner_errors
-from calib_core.detect import detect_images, image_paths
-from calib_core.detect_image import CLASSIC_FLAGS, SUBPIX, read_gray
+from calib_core.detection.corner_error import corner_errors
+from calib_core.detection.detect import detect_images, image_paths
+from calib_core.detection.detect_image import CLASSIC_FLAGS, SUBPIX, read_gray
 from calib_core.observations import Observations, View
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"

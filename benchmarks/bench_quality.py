@@ -9,7 +9,7 @@ public: compare the ranking and the ratios, not the numbers).
 ``train``: the noisy (σ) training boards, as ``freecal compare`` measures
 them (the noise floor: truth's straightness ≈ σ); ``holdout``: noise-free
 unseen boards covering the whole image, corners included (model error alone;
-truth gives 0). Metrics: ``calib_core/quality.py``.
+truth gives 0). Metrics: ``calib_core/evaluation/quality.py``.
 """
 from __future__ import annotations
 
@@ -20,8 +20,8 @@ import time
 from calib_core import synth
 from calib_core.errors import CalibError
 from calib_core.pipeline import calibrate
-from calib_core.quality import METRICS, geometric_quality, raw_quality
-from calib_core.synth_truth import truth_calibration
+from calib_core.evaluation.quality import METRICS, geometric_quality, raw_quality
+from calib_core.synth.truth import truth_calibration
 
 METHODS = ["zhang", "rational", "fisheye", "mls", "tps", "bspline"]
 # Paper Table 7 (real YP lens): straightness px, spacing CV, orthogonality deg, smoothness.

@@ -18,7 +18,7 @@ synthetic boards are flat).
 
 Each fixed model is then evaluated on ``test`` with a pose-only refit
 (``mrcal.optimize`` with the intrinsics locked, every corner kept), freecal's
-hold-out protocol (``calib_core.evaluate``).  OUT holds ``error`` if no seed
+hold-out protocol (``calib_core.evaluation.evaluate``).  OUT holds ``error`` if no seed
 worked, else per model ``m``: ``m_lensmodel``, ``m_intrinsics``,
 ``m_seconds`` (CPU time of this process, the stages it builds on included:
 the benchmark machine may be shared), residuals ``m_train`` / ``m_test``

@@ -7,7 +7,7 @@
 from .pipeline import calibrate
 from .calibration import Calibration
 from .errors import CalibError, DataError, FormatError, SettingsError
-from .evaluate import evaluate
+from .evaluation.evaluate import evaluate
 from .observations import Observations, View
 
 __all__ = ["calibrate", "evaluate", "Calibration", "Observations", "View",

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from . import camera, unproject
+from .models import camera, unproject
 from .errors import FormatError
 from .models import MODEL_TYPES, CameraModel
 from .observations import read_json, write_json

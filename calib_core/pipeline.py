@@ -12,13 +12,13 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 from threadpoolctl import threadpool_limits
 
-from . import metrics
+from .evaluation import metrics
 from .calibration import Calibration, ViewResult
 from .errors import DataError, SettingsError
 from .methods import METHODS
 from .methods.common import Progress, no_progress, settings_from
 from .observations import Observations
-from .solve import Data, SolveSettings, levenberg_marquardt
+from .fitting.solve import Data, SolveSettings, levenberg_marquardt
 
 MIN_VIEWS = 3
 MIN_POINTS_PER_VIEW = 6
@@ -146,6 +146,6 @@ def coverage_hull(pixels: np.ndarray) -> list[list[float]]:
 
 
 def _residuals(res, data: Data) -> np.ndarray:
-    from .solve import residuals
+    from .fitting.solve import residuals
 
     return residuals(res.model, res.poses, data)

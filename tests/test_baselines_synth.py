@@ -4,7 +4,8 @@ synthetic lenses (118° × 129° field of view); the two lenses beyond the paper
 import numpy as np
 import pytest
 
-from calib_core import Calibration, calibrate, evaluate, synth
+from calib_core import Calibration, calibrate, synth
+from calib_core.evaluation.evaluate import evaluate
 from calib_core.errors import SettingsError
 
 from .conftest import synthetic

@@ -6,7 +6,8 @@ import pytest
 
 from benchmarks import mrcal_bridge
 from benchmarks.bench_compare import thin
-from calib_core import babelcalib, synth
+from calib_core.detection import babelcalib
+from calib_core import synth
 
 from .conftest import shared_data
 

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import NdBSpline
 
-from calib_core.bspline import BSplineField, basis, bending_operator, clamped_knots, validate_knots
+from calib_core.models.bspline_basis import BSplineField, basis, bending_operator, clamped_knots, validate_knots
 from calib_core.errors import FormatError
 
 

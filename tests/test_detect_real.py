@@ -8,7 +8,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from calib_core.board import BoardSpec
-from calib_core.detect import Detection, detect_images
+from calib_core.detection.detect import Detection, detect_images
 from calib_core.observations import Observations
 from tests.conftest import shared_data
 

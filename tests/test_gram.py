@@ -3,7 +3,7 @@ within a row included (models pad their rows with zero-valued repeats)."""
 import numpy as np
 import scipy.sparse as sp
 
-from calib_core.gram import gram
+from calib_core.fitting.gram import gram
 
 
 def test_gram_is_scipys_product_with_repeated_columns():

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from calib_core import knots
+from calib_core.fitting import knots
 from calib_core.errors import SettingsError
 
 

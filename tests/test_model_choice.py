@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib_core.compare import validation_residuals
-from calib_core.choice import Candidate, choose
-from calib_core.metrics import rmse
+from calib_core.evaluation.compare import validation_residuals
+from calib_core.fitting.choice import Candidate, choose
+from calib_core.evaluation.metrics import rmse
 from calib_core.pipeline import calibrate
 
 from .simulated_lenses import around, fisheye_lens, views_of, webcam_lens
@@ -87,9 +87,9 @@ def test_leaving_a_view_out_in_closed_form_agrees_with_refits(method, settings, 
     squared validation error is within 1 % of converged refits (5 % for the rational
     model, whose denominators curve), at a fraction of their cost."""
     from calib_core import synth
-    from calib_core.crossval import linearised_view_errors
+    from calib_core.fitting.crossval import linearised_view_errors
     from calib_core.pipeline import to_data
-    from calib_core.solve import SolveSettings, levenberg_marquardt, select_views
+    from calib_core.fitting.solve import SolveSettings, levenberg_marquardt, select_views
 
     train = synth.generate("decentred", 0.3, 0, 10).train
     data, _, _ = to_data(train)
@@ -114,10 +114,10 @@ def test_a_field_over_a_core_is_scored_with_the_view_left_out_of_its_core_too():
     with refitting both stages without the view; holding the core as fitted
     to every view scores lower than either."""
     from calib_core import synth
-    from calib_core.crossval import linearised_view_errors
+    from calib_core.fitting.crossval import linearised_view_errors
     from calib_core.methods.auto import _free, _held_steps
     from calib_core.pipeline import to_data
-    from calib_core.solve import SolveSettings, levenberg_marquardt, select_views
+    from calib_core.fitting.solve import SolveSettings, levenberg_marquardt, select_views
 
     train = synth.generate("fisheye", 0.3, 0, 10).train
     data, _, _ = to_data(train)

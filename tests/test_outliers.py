@@ -4,7 +4,8 @@ import copy
 
 import pytest
 
-from calib_core import calibrate, evaluate
+from calib_core import calibrate
+from calib_core.evaluation.evaluate import evaluate
 
 from .conftest import synthetic
 

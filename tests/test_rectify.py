@@ -10,9 +10,9 @@ from scipy.ndimage import map_coordinates
 
 from calib_core.errors import SettingsError
 from calib_core.pipeline import calibrate
-from calib_core.quality import geometric_quality, raw_quality
-from calib_core.rectify import INVALID, fixed_camera, rectified_camera, rectify_image, undistort_maps
-from calib_core.synth_truth import truth_calibration
+from calib_core.evaluation.quality import geometric_quality, raw_quality
+from calib_core.products.rectify import INVALID, fixed_camera, rectified_camera, rectify_image, undistort_maps
+from calib_core.synth.truth import truth_calibration
 
 from .conftest import synthetic
 

@@ -140,7 +140,7 @@ def test_failed_job_reports_why_in_plain_words(service):
 
 
 def test_image_set_detection_and_calibration(service):
-    pytest.importorskip("calib_core.detect", reason="corner detection (calib_core.detect) is not in this build yet")
+    pytest.importorskip("calib_core.detection.detect", reason="corner detection (calib_core.detection.detect) is not in this build yet")
     folder = shared_data("opencv-stereo-9x6")
     images = sorted(folder.glob("left*.jpg"))[:8]
     buf = io.BytesIO()

@@ -3,8 +3,9 @@ minimum as plain damped steps, in fewer iterations, on the paper's model."""
 import dataclasses
 
 import calib_core.methods.bspline as bspline_method
-from calib_core import calibrate, evaluate
-from calib_core.solve import levenberg_marquardt
+from calib_core import calibrate
+from calib_core.evaluation.evaluate import evaluate
+from calib_core.fitting.solve import levenberg_marquardt
 
 from .conftest import synthetic
 

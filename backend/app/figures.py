@@ -40,13 +40,13 @@ def knot_cells(job_dir: Path) -> dict[str, Any] | None:
 
 
 def uncertainty(job_dir: Path, observations: Path, step: float = 32.0) -> dict[str, Any] | None:
-    """Projection uncertainty over a pixel grid (calib_core.uncertainty, boards frame), or None.
+    """Projection uncertainty over a pixel grid (calib_core.evaluation.uncertainty, boards frame), or None.
 
     The calibration's own views and inliers are the data; σ is estimated from their residuals.
     """
     from calib_core import Calibration, Observations
     from calib_core.pipeline import to_data
-    from calib_core.uncertainty import projection_uncertainty
+    from calib_core.evaluation.uncertainty import projection_uncertainty
 
     if not observations.exists():
         return None

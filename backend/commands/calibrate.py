@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from calib_core import Observations, calibrate
-from calib_core.detect import IMAGE_SUFFIXES
+from calib_core.detection.detect import IMAGE_SUFFIXES
 from calib_core.errors import SettingsError
 
 from .detect import BOARD_HELP, detect_with_report

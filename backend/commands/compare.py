@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from calib_core import Observations
-from calib_core.compare import compare
+from calib_core.evaluation.compare import compare
 
 from .output import StageProgress, print_json, table
 
@@ -78,13 +78,13 @@ def print_tables(result: dict) -> None:
 
 
 def print_quality(result: dict) -> None:
-    """Table 7: the boards' geometry after each method's rectification (calib_core/quality.py)."""
+    """Table 7: the boards' geometry after each method's rectification (calib_core/evaluation/quality.py)."""
     ms = result["methods"]
     rows = [("raw image", result.get("quality_raw", {}))] + [(m, ms[m].get("quality", {})) for m in ms if "error" not in ms[m]]
     rows = [(name, q) for name, q in rows if q and "error" not in q]
     if not rows:
         return
-    from calib_core.quality import METRICS
+    from calib_core.evaluation.quality import METRICS
 
     print("\nRectification quality on the boards (paper Table 7; straightness in rectified px, "
           "orthogonality in degrees, smoothness: mean |Hessian| of the distortion field [1/px])")

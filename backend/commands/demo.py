@@ -3,8 +3,9 @@ from __future__ import annotations
 
 import time
 
-from calib_core import calibrate, evaluate, synth
-from calib_core.metrics import noise_floor
+from calib_core import calibrate, synth
+from calib_core.evaluation.evaluate import evaluate
+from calib_core.evaluation.metrics import noise_floor
 
 from .output import table
 

@@ -5,7 +5,7 @@ import sys
 import time
 
 from calib_core.board import BoardSpec
-from calib_core.detect import Detection, detect_images
+from calib_core.detection.detect import Detection, detect_images
 from calib_core.errors import DataError
 
 from .output import table

@@ -1,7 +1,8 @@
 """freecal evaluate CAL.json OBS.json: the hold-out protocol (pose-only refit)."""
 from __future__ import annotations
 
-from calib_core import Calibration, Observations, evaluate
+from calib_core import Calibration, Observations
+from calib_core.evaluation.evaluate import evaluate
 
 from .output import print_json, table
 

@@ -42,7 +42,7 @@ def run(args) -> int:
 
 def write_images(out: Path, kind: str, truth: dict, seed: int) -> None:
     """DIR/images/<view>.png for every training pose and DIR/images_truth.json."""
-    from calib_core import render
+    from calib_core.synth import render
 
     poses = [(v["name"], np.array(v["rvec"] + v["tvec"], dtype=np.float64)) for v in truth["train_views"]]
     folder = out / "images"

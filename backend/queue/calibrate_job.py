@@ -1,7 +1,7 @@
 """A calibration job: observations in, calibration and its result files out.
 
 A thin wrapper: ``calib_core.calibrate`` (one method) or
-``calib_core.compare.compare`` (every method), then ``artefacts.write_all``.
+``calib_core.evaluation.compare.compare`` (every method), then ``artefacts.write_all``.
 """
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     settings = dict(job["settings"])
     out = ctx.storage.job_dir(job["id"])
     if job["method"] == COMPARE:
-        from calib_core.compare import compare
+        from calib_core.evaluation.compare import compare
 
         kwargs = {k: settings[k] for k in COMPARE_KEYS if k in settings}
         result = compare(obs, progress=lambda s, f: run.progress(s, f, 0.0, 0.85), **kwargs)

@@ -1,9 +1,9 @@
 """A detection job: a set's images → corners (``observations.json``) and a report per image.
 
-Images go to ``calib_core.detect.detect_images`` in batches so each image's
+Images go to ``calib_core.detection.detect.detect_images`` in batches so each image's
 status reaches the database (and the API) as soon as its batch is done.
 Coverage and its warning are computed over the merged views with
-``calib_core.coverage`` (what ``detect_images`` itself reports for one batch).
+``calib_core.evaluation.coverage`` (what ``detect_images`` itself reports for one batch).
 """
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ BATCHES = 8             # status updates per set; each batch still runs on every
 
 def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     from calib_core.board import BoardSpec
-    from calib_core.detect import detect_images
+    from calib_core.detection.detect import detect_images
 
     set_id = job["set_id"]
     row = sets.get(ctx.db, set_id)
@@ -83,7 +83,7 @@ def _report(r: Any) -> dict[str, Any]:
 
 
 def measure_coverage(views: list, image_size: tuple[int, int] | None) -> tuple[dict[str, Any] | None, str | None]:
-    from calib_core.coverage import coverage, coverage_warning
+    from calib_core.evaluation.coverage import coverage, coverage_warning
 
     if not views or image_size is None:
         return None, None

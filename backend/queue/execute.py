@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 
 from calib_core.errors import CalibError
-from calib_core.solve import Cancelled
+from calib_core.fitting.solve import Cancelled
 
 from ..app.context import Context
 from ..app.repository import jobs

@@ -13,7 +13,7 @@ import socket
 import time
 from typing import Any
 
-from calib_core.solve import Cancelled
+from calib_core.fitting.solve import Cancelled
 
 from ..app.context import Context
 from ..app.repository import jobs

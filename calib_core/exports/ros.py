@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import SettingsError
-from ..rectify import rectified_camera
+from ..products.rectify import rectified_camera
 from .lean_fit import LeanFit
 
 ROS_MODELS = {"opencv5": "plumb_bob", "opencv8": "rational_polynomial", "kb4": "equidistant"}

@@ -25,11 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..choice import Candidate, ModelChoice, choose
-from ..crossval import linearised_view_errors
+from ..fitting.choice import Candidate, ModelChoice, choose
+from ..fitting.crossval import linearised_view_errors
 from ..errors import DataError, SettingsError
-from ..init import initialise
-from ..solve import Data, spread_views
+from ..fitting.init import initialise
+from ..fitting.solve import Data, spread_views
 from .bspline import BSplineSettings, fit_core, fit_field, ideal_samples
 from .common import Fit, Progress, no_progress, scaled
 

@@ -30,17 +30,19 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .. import camera, knots, metrics
-from ..bspline import BSplineField, clamped_knots
-from ..choice import Candidate, choose
-from ..crossval import linearised_view_errors
+from ..models import camera
+from ..fitting import knots
+from ..evaluation import metrics
+from ..models.bspline_basis import BSplineField, clamped_knots
+from ..fitting.choice import Candidate, choose
+from ..fitting.crossval import linearised_view_errors
 from ..errors import DataError, SettingsError
-from ..init import initialise
-from ..metrics import design_diagnostics
+from ..fitting.init import initialise
+from ..evaluation.metrics import design_diagnostics
 from ..models.bspline import GAUGE_WEIGHT, BSplineModel, gauge_rows
 from ..models.hybrid import HybridModel
-from ..smoothing import LAMBDA_GRID, CVCurve, cv_curve, groups_of
-from ..solve import Data, SolveSettings, levenberg_marquardt, residuals
+from ..fitting.smoothing import LAMBDA_GRID, CVCurve, cv_curve, groups_of
+from ..fitting.solve import Data, SolveSettings, levenberg_marquardt, residuals
 from .common import Fit, Progress
 from .fisheye import FisheyeSettings, fit_fisheye
 from .opencv import OpenCVSettings, RationalSettings, fit_opencv

@@ -8,7 +8,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import SettingsError
-from ..solve import SolveResult, SolveSettings
+from ..fitting.solve import SolveResult, SolveSettings
 
 Progress = Callable[[str, float], None]
 

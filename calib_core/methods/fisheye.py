@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import DataError, SettingsError
-from ..init import initialise
-from ..solve import Data, SolveSettings, levenberg_marquardt
+from ..fitting.init import initialise
+from ..fitting.solve import Data, SolveSettings, levenberg_marquardt
 from .common import Fit, Progress
 
 

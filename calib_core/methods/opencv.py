@@ -13,11 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import camera
+from ..models import camera
 from ..errors import DataError, SettingsError
-from ..init import initialise
+from ..fitting.init import initialise
 from ..models.opencv import ALLOWED_COUNTS, OpenCVModel
-from ..solve import Data, SolveSettings, levenberg_marquardt
+from ..fitting.solve import Data, SolveSettings, levenberg_marquardt
 from .common import Fit, Progress
 
 # A pinhole model maps a ray θ off axis to tan θ: past this angle it cannot

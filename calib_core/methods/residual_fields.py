@@ -21,11 +21,11 @@ from typing import Callable
 
 import numpy as np
 
-from .. import camera
+from ..models import camera
 from ..errors import DataError, SettingsError
 from ..models.mls import MLSField, MLSModel
 from ..models.tps import TPSField, TPSModel, affine_basis, kernel_matrix
-from ..solve import Data, SolveResult, SolveSettings, levenberg_marquardt, residuals
+from ..fitting.solve import Data, SolveResult, SolveSettings, levenberg_marquardt, residuals
 from .common import Fit, Progress
 from .opencv import OpenCVSettings, fit_opencv
 

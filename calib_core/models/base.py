@@ -15,7 +15,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .. import camera
+from . import camera
 
 
 class CameraModel(ABC):

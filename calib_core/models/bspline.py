@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from ..bspline import BSplineField
+from .bspline_basis import BSplineField
 from ..errors import FormatError
 from .base import CameraModel, intrinsics_jacobian
 

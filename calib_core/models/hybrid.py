@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from ..bspline import BSplineField
+from .bspline_basis import BSplineField
 from ..errors import FormatError
 from .base import CameraModel, core_inverse_start
 from .bspline import GAUGE_WEIGHT, field_prior_rows, recorded_regularisation

@@ -26,7 +26,7 @@ COMPARE_KEYS = ("methods", "splits")
 
 def compare_available() -> bool:
     try:
-        from calib_core.compare import compare  # noqa: F401
+        from calib_core.evaluation.compare import compare  # noqa: F401
     except ImportError:
         return False
     return True

@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
-from .calibration import Calibration
-from .errors import DataError
-from .observations import Observations
+from ..calibration import Calibration
+from ..errors import DataError
+from ..observations import Observations
 
 MIN_LINE_POINTS = 3
 SMOOTHNESS_GRID = (48, 60)  # photo pixels sampled (across, down) for the smoothness

@@ -35,9 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from . import camera
-from .gram import gram
-from .solve import Data, SolveSettings, _assemble
+from ..models import camera
+from ..fitting.gram import gram
+from ..fitting.solve import Data, SolveSettings, _assemble
 
 
 @dataclass

@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import bspline_kernel
-from .errors import FormatError
+from ..errors import FormatError
 
 DEGREE = 3
 

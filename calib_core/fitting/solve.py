@@ -19,7 +19,7 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg
 
-from . import camera
+from ..models import camera
 from .gram import gram
 
 

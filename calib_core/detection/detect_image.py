@@ -15,7 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .board import BoardSpec
+from ..board import BoardSpec
 from .grid import expand, gap_strides, lattice_score, place_grid
 
 MIN_CORNERS = 6            # fewer cannot constrain a view's pose and the lens together

@@ -29,8 +29,8 @@ import numpy as np
 from scipy.interpolate import RectBivariateSpline
 from scipy.spatial.transform import Rotation
 
-from . import synth
-from .observations import Observations, View
+from .. import synth
+from ..observations import Observations, View
 
 BLACK, WHITE, BACKDROP = 35.0, 215.0, 110.0  # grey levels: printed ink, paper, the room behind
 BORDER_SQUARES = 1       # white paper around the outer squares, in squares (whole: every edge

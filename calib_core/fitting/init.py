@@ -21,9 +21,9 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from . import camera
-from .errors import DataError
-from .models.fisheye import FisheyeModel
+from ..models import camera
+from ..errors import DataError
+from ..models.fisheye import FisheyeModel
 from .solve import Data, SolveSettings, levenberg_marquardt, spread_views
 
 MIN_POINTS_PER_VIEW = 6

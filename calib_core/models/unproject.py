@@ -16,7 +16,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import camera
-from .models.base import CameraModel, refine_preimage
+from .base import CameraModel, refine_preimage
 
 N_THETA, N_PHI = 160, 192  # ~0.6° × 1.9° polar grid: start within a fraction of a cell
 MAX_THETA = {"pinhole": np.radians(88.0), "equidistant": np.radians(120.0), "stereographic": np.radians(150.0)}

@@ -18,11 +18,11 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from .board import BoardSpec
-from .coverage import coverage, coverage_warning
+from ..board import BoardSpec
+from ..evaluation.coverage import coverage, coverage_warning
 from .detect_image import ImageResult, detect_file
-from .errors import DataError
-from .observations import Observations, View
+from ..errors import DataError
+from ..observations import Observations, View
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp"}
 
@@ -139,7 +139,7 @@ def _context():
     methods = mp.get_all_start_methods()
     if "forkserver" in methods:
         ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(["calib_core.detect_image"])
+        ctx.set_forkserver_preload(["calib_core.detection.detect_image"])
         return ctx
     return mp.get_context("spawn")
 

@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from . import synth
-from .calibration import Calibration
-from .models.base import CameraModel
+from .. import synth
+from ..calibration import Calibration
+from ..models.base import CameraModel
 
 STEP = 1e-6  # normalised units: ~3e-4 px at f ≈ 300
 

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .observations import Observations
+from ..observations import Observations
 
 MATCH_PX = 1.0  # a detected corner further than this from every reference corner is wrong
 

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.spatial import Delaunay, QhullError
 
-from .errors import SettingsError
+from ..errors import SettingsError
 
 
 STRATEGIES = ("kde", "kde-paper", "uniform", "explicit")

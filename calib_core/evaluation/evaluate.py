@@ -6,12 +6,12 @@ from typing import Any
 import numpy as np
 
 from . import metrics
-from .pipeline import to_data
-from .calibration import Calibration
-from .errors import DataError
-from .init import poses_from_rays
-from .observations import Observations
-from .solve import SolveSettings, levenberg_marquardt
+from ..pipeline import to_data
+from ..calibration import Calibration
+from ..errors import DataError
+from ..fitting.init import poses_from_rays
+from ..observations import Observations
+from ..fitting.solve import SolveSettings, levenberg_marquardt
 
 
 def evaluate(cal: Calibration, obs: Observations) -> dict[str, Any]:

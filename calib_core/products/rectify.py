@@ -28,8 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from .calibration import Calibration
-from .errors import CalibError, SettingsError
+from ..calibration import Calibration
+from ..errors import CalibError, SettingsError
 
 MAX_ANGLE_DEG = 80.0  # rays further off axis are clipped when choosing the camera (a pinhole cannot show 90°)
 BORDER_SAMPLES = 96  # photo-border samples per side when choosing the camera

@@ -23,15 +23,15 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import metrics, quality
-from .choice import Candidate, choose
-from .calibration import Calibration
-from .crossval import folds
-from .errors import CalibError, DataError, SettingsError
-from .init import poses_from_rays
-from .methods import METHODS
-from .observations import Observations
-from .pipeline import MIN_VIEWS, calibrate, to_data
-from .solve import SolveSettings, levenberg_marquardt
+from ..fitting.choice import Candidate, choose
+from ..calibration import Calibration
+from ..fitting.crossval import folds
+from ..errors import CalibError, DataError, SettingsError
+from ..fitting.init import poses_from_rays
+from ..methods import METHODS
+from ..observations import Observations
+from ..pipeline import MIN_VIEWS, calibrate, to_data
+from ..fitting.solve import SolveSettings, levenberg_marquardt
 
 DEFAULT_METHODS = ("zhang", "rational", "fisheye", "mls", "tps", "bspline")
 # The verdict's order of simplicity: parametric models by their number of

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import FormatError
-from .observations import Observations, View
+from ..errors import FormatError
+from ..observations import Observations, View
 
 
 def read_board(path: str | Path) -> np.ndarray:

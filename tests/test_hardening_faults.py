@@ -59,7 +59,7 @@ def fail_writes(monkeypatch, code: int, after: int = 0) -> None:
 @pytest.fixture
 def app(tmp_path):
     settings = Settings.from_env(env={}, data_dir=tmp_path / "data", viewer=False)
-    with TestClient(create_app(settings)) as c:
+    with TestClient(create_app(settings), base_url="http://127.0.0.1") as c:  # a name the Host check allows
         yield c
 
 

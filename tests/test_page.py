@@ -37,6 +37,12 @@ SETTINGS = {"knots": "uniform", "lambda_smooth": "0.1", "max_iterations": "30", 
             "bandwidth_factor": "1.2", "time_budget": "60", "core": "rational"}
 
 
+def wait_until(page, expression: str, timeout: float) -> None:
+    """Poll a JS expression until true. Not page.wait_for_function: Playwright compiles its predicate
+    with eval inside the page, which the page's Content-Security-Policy (rightly) forbids."""
+    wait_for(lambda: page.evaluate(expression), timeout / 1000, expression, every=0.2)
+
+
 def fill_settings(page, settings: dict[str, str]) -> None:
     """Open the settings panel and enter ``settings``, whatever each field's kind."""
     page.click("#settings summary")
@@ -99,7 +105,7 @@ def test_upload_watch_review_download_and_3d(browser, service, shots, tmp_path):
     page.screenshot(path=shots / "02-filled.png")
     page.click("#submit")
 
-    page.wait_for_function("document.querySelector('#set-progress-label').textContent.startsWith('ready')",
+    wait_until(page, "document.querySelector('#set-progress-label').textContent.startsWith('ready')",
                            timeout=90_000)
     thumbs = page.locator("#images li")
     assert thumbs.count() == len(images) + 1
@@ -122,7 +128,7 @@ def test_upload_watch_review_download_and_3d(browser, service, shots, tmp_path):
     page.wait_for_selector("#metrics-quality", timeout=60_000)
     raw, rect = [float(page.text_content(f"#metrics-quality tbody tr:nth-child({i}) td")) for i in (1, 2)]
     assert rect < raw  # rectified board lines are straighter than the photo's
-    page.wait_for_function("document.querySelector('#rectified-after') && "
+    wait_until(page, "document.querySelector('#rectified-after') && "
                            "document.querySelector('#rectified-after').naturalWidth > 0", timeout=60_000)
     maps = page.request.get(base + page.get_attribute("#downloads a[data-file='maps.npz']", "href"))
     assert maps.ok
@@ -231,7 +237,7 @@ def test_browser_with_a_token_asks_once_then_sends_it_everywhere(browser, guarde
     # <img src> and links cannot send headers: they carry ?token=
     first = page.locator("#images img").first
     first.scroll_into_view_if_needed()
-    page.wait_for_function("(() => { const i = document.querySelector('#images img'); "
+    wait_until(page, "(() => { const i = document.querySelector('#images img'); "
                            "return i.complete && i.naturalWidth > 0; })()", timeout=30_000)
     assert f"token={TOKEN}" in first.get_attribute("src")
     hrefs = page.eval_on_selector_all("#downloads a", "as => as.map(a => a.getAttribute('href'))")
@@ -239,7 +245,7 @@ def test_browser_with_a_token_asks_once_then_sends_it_everywhere(browser, guarde
     with page.expect_download() as dl:
         page.click("#downloads a[data-file='calibration.json']")
     assert Calibration.from_json(json.loads(Path(dl.value.path()).read_text())).method == "auto"
-    page.wait_for_function("document.querySelector('#rectified-after') && "
+    wait_until(page, "document.querySelector('#rectified-after') && "
                            "document.querySelector('#rectified-after').naturalWidth > 0", timeout=60_000)
 
     # the 3D view through /viewer: its page and websocket pass the token, and the scene arrives

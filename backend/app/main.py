@@ -16,10 +16,14 @@ from fastapi import FastAPI
 
 from ..queue.recovery import Periodic, recover_stale, requeue_pending
 from ..queue.tasks import QueueUnavailable, build_queue
-from . import errors
+from . import allow, errors
 from .context import Context
 from .limits import BodyLimit
 from . import frontend
+from .header_limit import HeaderLimit
+from .headers import SecurityHeaders
+from .openapi import install_schema
+from .origins import Allowed, OriginGuard
 from .security import ClientQuota, TokenDep, check_viewer_exposure, install_cors, install_docs
 from .routers import figures, health, images, jobs, rectified, sets, viewer
 from .settings import Settings
@@ -64,11 +68,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.settings = settings
     app.state.quota = ClientQuota(settings.max_jobs_per_client)
     errors.install(app)
+    allow.install(app)  # 405: the methods the path takes
     app.add_middleware(BodyLimit, max_bytes=settings.max_upload_bytes + 1024 * 1024)  # + multipart overhead
     install_cors(app, settings.cors_origins)
+    app.add_middleware(OriginGuard, allowed=Allowed.of(settings))  # outside CORS: a refused Host never gets in
+    app.add_middleware(HeaderLimit)  # 431 before anything reads a header
+    app.add_middleware(SecurityHeaders)  # outermost: every answer, refusals included
     for module in (sets, images, rectified, jobs, figures, viewer, health):  # rectified before jobs: its maps.npz beats /{file}
         app.include_router(module.router, dependencies=[TokenDep])  # FREECAL_TOKEN, when set
     install_docs(app)
+    install_schema(app)  # the errors as they are answered ({"detail": "..."}), in /openapi.json
     from ..viewer import proxy
 
     proxy.install(app)  # /viewer: the 3D view behind the same token

@@ -52,6 +52,12 @@ class SetsPublic(BaseModel):
 
 
 class JobCreate(BaseModel):
+    # the schema says what one_input checks: exactly one of the two inputs, not null
+    model_config = {"json_schema_extra": {"oneOf": [
+        {"required": ["set_id"], "properties": {"set_id": {"type": "string"}, "observations": {"type": "null"}}},
+        {"required": ["observations"], "properties": {"observations": {"type": "object"}, "set_id": {"type": "null"}}},
+    ]}}
+
     set_id: str | None = Field(None, description="an image set whose corners are ready")
     observations: dict[str, Any] | None = Field(None, description="or corners inline: freecal.observations/1")
     method: str = Field("auto", description="a method name ('auto', the default, chooses the model that best "

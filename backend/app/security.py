@@ -6,9 +6,11 @@ per-client job quota and the local /docs page.
   ``Authorization: Bearer <token>`` or ``?token=<token>`` (for <img src>,
   download links and websockets, which cannot send headers), else 401. The page
   (frontend/) and /docs stay public: they hold no data and must load to ask.
-- ``check_viewer_exposure``: viser cannot check a token itself, so with a token
-  set its own port must stay on loopback (reached only through /viewer).
-- CORS is closed unless ``FREECAL_CORS_ORIGINS`` lists origins.
+- ``check_viewer_exposure``: viser cannot check a token itself (its port takes only
+  the proxy's key: viewer/gate.py), so with a token set its own port must also stay
+  on loopback (reached only through /viewer).
+- CORS is closed unless ``FREECAL_CORS_ORIGINS`` lists origins. Host and Origin
+  checks (DNS rebinding, cross-site writes): origins.py.
 - ``ClientQuota``: at most ``FREECAL_MAX_JOBS_PER_CLIENT`` queued or running
   jobs per client IP (429 with advice beyond).
 - /docs: Swagger UI from the ``swagger-ui-bundle`` package, served from this
@@ -34,6 +36,9 @@ from .repository import jobs as job_rows
 TOKEN_NEEDED = ("this server needs a token: send the header 'Authorization: Bearer <token>' "
                 "(or ?token=<token> in a link); ask its administrator for FREECAL_TOKEN")
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
+# A set's images are someone's photos, served behind the token when one is set: the browser may keep
+# them an hour (a stored image never changes), a cache shared between users (a proxy) may not.
+PRIVATE_IMAGE = "private, max-age=3600"
 
 
 def token_ok(conn: HTTPConnection) -> bool:

@@ -49,8 +49,14 @@ class Settings:
     # Hardening (docs/service.md, "Security" and "Limits"):
     # token: when set, every /api request needs "Authorization: Bearer <token>" or ?token=<token>.
     token: str = ""
-    # cors_origins: comma-separated origins allowed to call the API from another site ("" = none, closed).
+    # cors_origins: comma-separated origins allowed to call the API from another site ("" = none, closed);
+    # they may also send POST/PUT/PATCH/DELETE, which other sites' pages may not (403).
     cors_origins: str = ""
+    # The API's own address (`freecal serve --host`): a name it answers to, beside the loopback names.
+    host: str = "127.0.0.1"
+    # allowed_hosts: comma-separated more names the Host header may carry (DNS-rebinding defence;
+    # 400 for any other name; "*" = any, e.g. behind a proxy that checks the name itself).
+    allowed_hosts: str = ""
     # Jobs (detections and calibrations) one client IP may have queued or running at once (429 beyond).
     max_jobs_per_client: int = 20
     # A job running longer than this (seconds) is killed and failed with the reason (0 = no limit).

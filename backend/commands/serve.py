@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from dataclasses import replace
 
 from .worker import add_queue_options, settings_of
 
@@ -28,9 +29,10 @@ def register(sub) -> None:
 def run(args) -> int:
     import uvicorn
 
+    from ..app.header_limit import uvicorn_options
     from ..app.main import create_app
 
-    settings = settings_of(args)
+    settings = replace(settings_of(args), host=args.host)  # a name the API answers to (Host header)
     from ..app.context import Context
 
     Context.check_writable(settings.data_dir)  # a clear line now, not a traceback from every process
@@ -43,7 +45,7 @@ def run(args) -> int:
     print(f"freecal: API on http://{args.host}:{args.port} (docs at /docs), {len(children)} worker(s), "
           f"data in {settings.data_dir}", file=sys.stderr, flush=True)
     try:
-        uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level="warning")
+        uvicorn.run(create_app(settings), host=args.host, port=args.port, **uvicorn_options())
     finally:
         for child in children:
             child.terminate()

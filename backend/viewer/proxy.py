@@ -1,15 +1,16 @@
 """/viewer: the 3D view (viser) through the API's own port, behind the token.
 
-viser serves its page and its websocket on a port of its own and has no hook to
-refuse a connection (its connect callback runs only after the scene's shared
-messages went out, and never sees the request). So viser listens on loopback
-only and browsers reach it here, where ``security.token_ok`` runs before a byte
-of viser's comes back:
+viser serves its page and its websocket on a port of its own, on loopback, and
+its websocket takes only this proxy (``gate.py``: the per-process key added
+here). Browsers reach it here, where the Host and Origin (``app/origins.py``,
+middleware) and ``security.token_ok`` are checked before a byte of viser's comes
+back:
 
 - ``GET /viewer/<path>`` forwards to viser's HTTP server (its client page);
 - the websocket ``/viewer`` is accepted only with the token (``?token=``: a
-  browser cannot put headers on a websocket) and then relays frames both ways.
-  Without it the handshake is refused (HTTP 403): no scene data at all.
+  browser cannot put headers on a websocket) from this server's own page (or a
+  ``FREECAL_CORS_ORIGINS`` one), and then relays frames both ways, the browser's
+  Origin left out. Otherwise the handshake is refused (HTTP 403): no scene data.
 
 viser's page connects to the websocket at its own address minus the trailing
 slash (``/viewer/`` -> ``/viewer``); with a token the page passes the full
@@ -26,6 +27,7 @@ from fastapi.responses import Response
 
 from ..app.errors import ApiError
 from ..app.security import TOKEN_NEEDED, TokenDep, token_ok
+from .gate import KEY_HEADER
 
 MAX_FRAME = 64 * 1024 * 1024  # viser itself allows 50 MB messages
 
@@ -53,7 +55,7 @@ def install(app: FastAPI) -> None:
             # closing before accept refuses the handshake (HTTP 403): nothing of the scene is sent
             await ws.close(code=1008, reason="3D view off" if viewer is None else TOKEN_NEEDED[:120])
             return
-        await relay(ws, f"ws://{viewer.address}/")
+        await relay(ws, f"ws://{viewer.address}/", {KEY_HEADER: viewer.gate.key})
 
 
 def _viewer(app: FastAPI):
@@ -63,7 +65,7 @@ def _viewer(app: FastAPI):
     return viewer
 
 
-async def relay(ws: WebSocket, upstream_url: str) -> None:
+async def relay(ws: WebSocket, upstream_url: str, headers: dict[str, str]) -> None:
     """Connect to viser with the browser's subprotocol (viser checks its version there), then copy
     frames both ways until either side closes; viser's close code (e.g. 1002, version mismatch) is passed on."""
     from websockets.asyncio.client import connect
@@ -71,8 +73,8 @@ async def relay(ws: WebSocket, upstream_url: str) -> None:
 
     offered = list(ws.scope.get("subprotocols") or [])
     try:
-        upstream = await connect(upstream_url, subprotocols=offered or None, max_size=MAX_FRAME,
-                                 compression=None, open_timeout=10)
+        upstream = await connect(upstream_url, subprotocols=offered or None, additional_headers=headers,
+                                 max_size=MAX_FRAME, compression=None, open_timeout=10)
     except Exception:  # viser gone, refusing or slow: tell the browser, not a traceback
         await ws.close(code=1011, reason="the 3D view does not answer")
         return

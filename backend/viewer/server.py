@@ -14,6 +14,7 @@ from typing import Any
 
 from ..app.context import Context
 from . import data
+from .gate import ProxyOnly
 from .scene import COMPONENTS, Built, build_scene, set_component
 
 log = logging.getLogger("freecal.viewer")
@@ -40,8 +41,8 @@ class Session:
 class Viewer:
     """``Viewer(ctx)`` starts viser on loopback (``port`` 0: any free one); ``stop()`` ends it.
 
-    Browsers reach it through the API's /viewer proxy (``proxy.py``), which checks the token:
-    viser itself has no hook to refuse a connection, so its own port must not face a network.
+    Browsers reach it through the API's /viewer proxy (``proxy.py``), which checks the token and
+    the Origin; viser's own port serves only the proxy (``gate.ProxyOnly``: the key it adds).
     """
 
     def __init__(self, ctx: Context, host: str = "127.0.0.1", port: int = 0):
@@ -52,6 +53,7 @@ class Viewer:
         self.focus: str | None = None
         self.sessions: dict[int, Session] = {}
         self.server = viser.ViserServer(host=host, port=port, label="freecal 3D view", verbose=False)
+        self.gate = ProxyOnly(self.server)   # first: before any callback that sends freecal's data
         self.server.gui.configure_theme(control_layout="floating", control_width="large", show_logo=False)
         # every tab starts behind and above the camera, looking at the boards (scene: y down, 1 = board distance)
         self.server.initial_camera.up = (0.0, -1.0, 0.0)
@@ -78,6 +80,8 @@ class Viewer:
 
     # ---- one tab ---------------------------------------------------------------------
     def _connect(self, client: Any) -> None:
+        if not self.gate.admitted(client.client_id):
+            return   # not through the proxy: no job list, no scene
         session = Session(client)
         self.sessions[client.client_id] = session
         gui = client.gui

@@ -9,6 +9,7 @@ whose ids are absolute, so partial boards come naturally.
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +18,8 @@ import numpy as np
 
 from ..board import BoardSpec
 from .grid import expand, gap_strides, lattice_score, place_grid
+
+log = logging.getLogger("freecal.detect")
 
 MIN_CORNERS = 6            # fewer cannot constrain a view's pose and the lens together
 MAX_EDGE_WIDTH = 8.0       # px, black-to-white transition; OpenCV calls < 3 sharp
@@ -71,7 +74,18 @@ def detect_file(path: str | Path, board: BoardSpec, name: str | None = None) -> 
         res.name = name
         return res
     except Exception as exc:  # a detector crash on one image must not cost the others
-        return ImageResult(name, "rejected", 0, f"detection failed ({type(exc).__name__}: {exc})")
+        log.warning("detection failed on %s: %s: %s", name, type(exc).__name__, exc)  # the raw text: for the log
+        return ImageResult(name, "rejected", 0, failure_reason(exc))
+
+
+def failure_reason(exc: Exception) -> str:
+    """Why one image failed, in words: OpenCV's own text ('OpenCV(5.0.0) /io/opencv/modules/...:
+    error: (-215:Assertion failed) ...') names its build folder and an assertion, nothing a user can act on."""
+    if isinstance(exc, MemoryError):
+        return "not enough memory to process this image: upload a smaller one (fewer pixels)"
+    what = "OpenCV could not process it" if isinstance(exc, cv2.error) else f"the detector failed ({type(exc).__name__})"
+    return (f"detection failed: {what}; the file may be corrupt or an unusual variant of its format: "
+            "re-save it as PNG or JPEG and upload it again")
 
 
 def detect_gray(gray: np.ndarray, board: BoardSpec) -> ImageResult:

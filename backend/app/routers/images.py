@@ -1,13 +1,16 @@
 """/api/sets/{id}/images/{name}/thumbnail: a small JPEG of one uploaded image (for the page)."""
 from __future__ import annotations
 
-from fastapi import APIRouter
+from typing import Annotated
+
+from fastapi import APIRouter, Query
 from fastapi.responses import FileResponse
 from starlette.concurrency import run_in_threadpool
 
 from ..deps import ContextDep
 from ..errors import ApiError
 from ..schemas import Message
+from ..security import PRIVATE_IMAGE
 from ..services import sets as service
 from ..thumbnails import SIZES, thumbnail
 
@@ -16,7 +19,8 @@ router = APIRouter(prefix="/api/sets", tags=["sets"])
 
 @router.get("/{set_id}/images/{name}/thumbnail", response_class=FileResponse,
             responses={404: {"model": Message}, 422: {"model": Message}})
-async def read_thumbnail(ctx: ContextDep, set_id: str, name: str, size: int = SIZES[0]) -> FileResponse:
+async def read_thumbnail(ctx: ContextDep, set_id: str, name: str,
+                         size: Annotated[int, Query(json_schema_extra={"enum": list(SIZES)})] = SIZES[0]) -> FileResponse:
     """The image scaled down to ``size`` pixels on its longest side (160 or 640), JPEG, cached."""
     if size not in SIZES:
         raise ApiError(422, f"size must be one of {', '.join(map(str, SIZES))} (pixels on the longest side)")
@@ -27,4 +31,4 @@ async def read_thumbnail(ctx: ContextDep, set_id: str, name: str, size: int = SI
                                    name, size)
     if path is None:
         raise ApiError(404, f"image {name!r} of set {set_id} cannot be read")
-    return FileResponse(path, media_type="image/jpeg", headers={"Cache-Control": "max-age=3600"})
+    return FileResponse(path, media_type="image/jpeg", headers={"Cache-Control": PRIVATE_IMAGE})

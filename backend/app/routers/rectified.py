@@ -14,6 +14,7 @@ from .. import rectified, storage
 from ..deps import ContextDep
 from ..errors import ApiError
 from ..schemas import Message
+from ..security import PRIVATE_IMAGE
 from ..services import jobs as service
 from ..services import sets as sets_service
 
@@ -41,7 +42,7 @@ async def read_rectified(ctx: ContextDep, job_id: str, name: str) -> FileRespons
                                    ctx.storage.images_dir(job["set_id"]) / storage.safe_name(name))
     if path is None:
         raise ApiError(404, f"image {name!r} cannot be read")
-    return FileResponse(path, media_type="image/jpeg", headers={"Cache-Control": "max-age=3600"})
+    return FileResponse(path, media_type="image/jpeg", headers={"Cache-Control": PRIVATE_IMAGE})
 
 
 @router.get("/{job_id}/maps.npz", responses=ERRORS)

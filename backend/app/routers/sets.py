@@ -25,7 +25,8 @@ ERRORS = {404: {"model": Message}, 409: {"model": Message}, 503: {"model": Messa
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=SetPublic, responses=ERRORS)
 async def create_set(
     ctx: ContextDep, queue: QueueDep, quota: QuotaDep, request: Request,
-    files: Annotated[list[UploadFile], File(description="images, one .zip of images, or one observations .json")],
+    files: Annotated[list[UploadFile], File(min_length=1,
+                                            description="images, one .zip of images, or one observations .json")],
     board: Annotated[str | None, Form(description="board spec, e.g. chessboard:9x6:25mm")] = None,
     name: Annotated[str | None, Form(description="a label for the set")] = None,
 ) -> SetPublic:

@@ -241,7 +241,7 @@ def test_head_wherever_get_is(open_svc):
 def test_per_image_reasons_hold_no_opencv_text():
     import cv2 as cv
 
-    from calib_core.detect_image import failure_reason
+    from calib_core.detection.detect_image import failure_reason
 
     raw = cv.error("OpenCV(5.0.0) /io/opencv/modules/imgcodecs/src/loadsave.cpp:77: error: (-215:Assertion failed) "
                    "pixels <= CV_IO_MAX_IMAGE_PIXELS in function 'validateInputImageSize'")

@@ -17,7 +17,7 @@ import numpy as np
 
 from calib_core import calibrate, synth
 from calib_core.evaluation.evaluate import evaluate
-from calib_core.evaluation.metrics import noise_floor
+from calib_core.fitting.metrics import noise_floor
 
 from backend.commands.output import table as print_table
 

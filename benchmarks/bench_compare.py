@@ -22,7 +22,7 @@ import numpy as np
 
 from backend.commands.output import table as print_table
 from calib_core.detection import babelcalib
-from calib_core.evaluation import metrics
+from calib_core.fitting import metrics
 from calib_core import synth
 from calib_core.evaluation.compare import compare, validation_residuals
 from calib_core.errors import CalibError

@@ -40,7 +40,7 @@ from threadpoolctl import threadpool_limits
 from calib_core import synth
 from calib_core.errors import CalibError
 from calib_core.evaluation.evaluate import evaluate
-from calib_core.evaluation.metrics import noise_floor
+from calib_core.fitting.metrics import noise_floor
 from calib_core.pipeline import calibrate
 
 from . import mrcal_bridge

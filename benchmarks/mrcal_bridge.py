@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calib_core.evaluation import metrics
+from calib_core.fitting import metrics
 from calib_core.observations import Observations
 
 SCRIPT = Path(__file__).with_name("mrcal_fit.py")

@@ -12,7 +12,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 from threadpoolctl import threadpool_limits
 
-from .evaluation import metrics
+from .fitting import metrics
 from .calibration import Calibration, ViewResult
 from .errors import DataError, SettingsError
 from .methods import METHODS

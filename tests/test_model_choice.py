@@ -8,7 +8,7 @@ import pytest
 
 from calib_core.evaluation.compare import validation_residuals
 from calib_core.fitting.choice import Candidate, choose
-from calib_core.evaluation.metrics import rmse
+from calib_core.fitting.metrics import rmse
 from calib_core.pipeline import calibrate
 
 from .simulated_lenses import around, fisheye_lens, views_of, webcam_lens

@@ -5,7 +5,7 @@ import time
 
 from calib_core import calibrate, synth
 from calib_core.evaluation.evaluate import evaluate
-from calib_core.evaluation.metrics import noise_floor
+from calib_core.fitting.metrics import noise_floor
 
 from .output import table
 

@@ -22,7 +22,8 @@ from typing import Any, Callable
 import numpy as np
 from scipy.spatial import cKDTree
 
-from . import metrics, quality
+from ..fitting import metrics
+from . import quality
 from ..fitting.choice import Candidate, choose
 from ..calibration import Calibration
 from ..fitting.crossval import folds

@@ -5,7 +5,7 @@ from typing import Any
 
 import numpy as np
 
-from . import metrics
+from ..fitting import metrics
 from ..pipeline import to_data
 from ..calibration import Calibration
 from ..errors import DataError

@@ -32,13 +32,13 @@ import scipy.sparse as sp
 
 from ..models import camera
 from ..fitting import knots
-from ..evaluation import metrics
+from ..fitting import metrics
 from ..models.bspline_basis import BSplineField, clamped_knots
 from ..fitting.choice import Candidate, choose
 from ..fitting.crossval import linearised_view_errors
 from ..errors import DataError, SettingsError
 from ..fitting.init import initialise
-from ..evaluation.metrics import design_diagnostics
+from ..fitting.metrics import design_diagnostics
 from ..models.bspline import GAUGE_WEIGHT, BSplineModel, gauge_rows
 from ..models.hybrid import HybridModel
 from ..fitting.smoothing import LAMBDA_GRID, CVCurve, cv_curve, groups_of

@@ -38,8 +38,8 @@ Gaussian, σ per axis. Hold-out views are noise-free views of a much larger
 board that together cover the whole image, corners included.
 """
 from .lenses import (DECENTRE, HOLDOUT_BOARD, IMAGE_SIZE, INTRINSICS, KINDS, LENSES, PAPER_KINDS, SQUARE, TILT,
-                     TRAIN_BOARD, TRUTH_FORMAT, asymmetric_offset, decentred_distort, direction_cosines,
-                     freeform_offset, opencv_distort, true_distort, true_project)
+    TRAIN_BOARD, TRUTH_FORMAT, asymmetric_offset, decentred_distort, direction_cosines, freeform_offset,
+    opencv_distort, true_distort, true_project)
 from .protocol import SynthSet, board_points, generate, look_at_pose
 
 __all__ = ["DECENTRE", "HOLDOUT_BOARD", "IMAGE_SIZE", "INTRINSICS", "KINDS", "LENSES", "PAPER_KINDS", "SQUARE", "TILT",

@@ -9,7 +9,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..observations import Observations, View
-from .lenses import HOLDOUT_BOARD, IMAGE_SIZE, INTRINSICS, KINDS, LENSES, SQUARE, TRAIN_BOARD, TRUTH_FORMAT, true_project
+from .lenses import (HOLDOUT_BOARD, IMAGE_SIZE, INTRINSICS, KINDS, LENSES, SQUARE, TRAIN_BOARD, TRUTH_FORMAT,
+    true_project)
+
 
 def board_points(cols: int, rows: int, square: float = SQUARE) -> np.ndarray:
     """Inner corners (rows·cols, 3), id = row·cols + col, origin at corner 0."""

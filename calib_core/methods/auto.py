@@ -27,7 +27,8 @@ import numpy as np
 
 from ..choice import Candidate, ModelChoice, choose
 from ..crossval import linearised_view_errors
-from ..errors import DataError, SettingsError
+from .. import ranges
+from ..errors import DataError
 from ..init import initialise
 from ..solve import Data, spread_views
 from .bspline import BSplineSettings, fit_core, fit_field, ideal_samples
@@ -39,10 +40,7 @@ class AutoSettings:
     decision_views: int = 20  # above this many views, the choice is made on this many (spread over the set)
 
     def validate(self) -> None:
-        for name, low, high in (("decision_views", 3, 1000),):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-                raise SettingsError(f"{name}: expected a whole number from {low} to {high}, got {value!r}")
+        ranges.whole("decision_views", self.decision_views, 3, 1000)
 
 
 @dataclass(frozen=True)

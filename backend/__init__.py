@@ -11,5 +11,7 @@ import os
 from .app.settings import Settings
 
 _limit = os.environ.get("FREECAL_MAX_IMAGE_PIXELS", "").strip()
-# a malformed value is refused later, in words (Settings.from_env); OpenCV would abort its import on it
-os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", _limit if _limit.isdigit() else str(Settings.max_image_pixels))
+if _limit.isdigit():  # the service's limit is OpenCV's, whatever a parent process left in the environment
+    os.environ["OPENCV_IO_MAX_IMAGE_PIXELS"] = _limit
+else:  # unset (the default), or malformed: refused later, in words (Settings.from_env); OpenCV would abort on it
+    os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(Settings.max_image_pixels))

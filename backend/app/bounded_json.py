@@ -76,5 +76,5 @@ class _BoundedJSONRequest(Request):
             try:
                 self._json = await run_in_threadpool(parse, raw, "the request body")
             except ApiError as exc:  # FastAPI passes an HTTPException on as it is, and makes anything else a bare 400
-                raise HTTPException(exc.status, exc.detail) from None
+                raise HTTPException(exc.status, f"invalid request: {exc.detail}") from None  # as errors.py words 422s
         return self._json

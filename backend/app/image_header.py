@@ -20,7 +20,6 @@ from typing import BinaryIO
 
 from .errors import ApiError
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm", ".pbm", ".pnm")
 FORMATS = "PNG, JPEG, BMP, TIFF, WebP or PBM/PGM/PPM"
 
 

@@ -9,10 +9,11 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from calib_core import Observations
+from calib_core.detect import IMAGE_SUFFIXES  # one list: what the command line and the service read
 
 from . import bounded_json, storage
 from .errors import ApiError
-from .image_header import IMAGE_SUFFIXES, check_decodable, check_pixels
+from .image_header import check_decodable, check_pixels
 from .settings import Settings
 
 

@@ -22,6 +22,10 @@ from .errors import FormatError, SettingsError
 
 TYPES = ("chessboard", "charuco")
 _UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "": 1.0}
+# Bounds on what a spec may ask for (a client's spec runs detection on a shared worker:
+# a 1000x1000 ChArUco board held one for minutes on a single small image).
+MAX_SIDE = 100                         # inner corners (chessboard) or squares (ChArUco) per side
+MIN_LENGTH_MM, MAX_LENGTH_MM = 0.001, 10_000.0   # squares and markers: 1 µm to 10 m
 _EXAMPLES = "e.g. chessboard:9x6:25mm or charuco:5x7:40mm:20mm:DICT_6X6_250 (add :legacy for the old ChArUco layout)"
 
 
@@ -30,6 +34,12 @@ def dictionaries() -> list[str]:
     import cv2
 
     return sorted(n for n in dir(cv2.aruco) if n.startswith("DICT_"))
+
+
+def _dictionary_size(name: str) -> int:
+    import cv2
+
+    return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)).bytesList.shape[0]
 
 
 @dataclass(frozen=True)
@@ -54,21 +64,34 @@ class BoardSpec:
         if self.type not in TYPES:
             raise SettingsError(f"board type {self.type!r} is unknown; use one of {', '.join(TYPES)} ({_EXAMPLES})")
         least = 2
+        what = "inner corners" if self.type == "chessboard" else "squares"
         if self.cols < least or self.rows < least:
-            what = "inner corners" if self.type == "chessboard" else "squares"
             raise SettingsError(f"board {self.cols}x{self.rows}: need at least {least}x{least} {what}")
-        if not (self.square_size > 0 and np.isfinite(self.square_size)):
-            raise SettingsError(f"board square size must be a positive length, got {self.square_size!r}")
+        if self.cols > MAX_SIDE or self.rows > MAX_SIDE:
+            raise SettingsError(f"board {self.cols}x{self.rows}: at most {MAX_SIDE}x{MAX_SIDE} {what}; "
+                                "count the board's own (e.g. chessboard:9x6:25mm)")
+        self._check_length("square size", self.square_size)
         if self.type == "charuco":
             if self.marker_size is None or not (0 < self.marker_size < self.square_size):
                 raise SettingsError(
                     f"ChArUco marker size must be positive and smaller than the square ({self.square_size:g}), "
                     f"got {self.marker_size!r}"
                 )
+            self._check_length("marker size", self.marker_size)
             if self.dictionary not in dictionaries():
                 raise SettingsError(
                     f"ArUco dictionary {self.dictionary!r} is unknown; use one of {', '.join(dictionaries())}"
                 )
+            markers, held = self.cols * self.rows // 2, _dictionary_size(self.dictionary)
+            if markers > held:
+                raise SettingsError(f"a {self.cols}x{self.rows} ChArUco board has {markers} markers, more than "
+                                    f"{self.dictionary} holds ({held}): check the board's size and dictionary")
+
+    def _check_length(self, what: str, value: float) -> None:
+        mm = value * _UNITS.get(self.units, 1.0) if isinstance(value, (int, float)) else float("nan")
+        if not MIN_LENGTH_MM <= mm <= MAX_LENGTH_MM:  # NaN fails too
+            raise SettingsError(f"board {what} must be a length from {MIN_LENGTH_MM:g} mm to "
+                                f"{MAX_LENGTH_MM / 1000:g} m, got {value!r} {self.units}")
 
     # ---- geometry -------------------------------------------------------
     @property
@@ -172,6 +195,8 @@ def _grid(spec: str, text: str) -> tuple[int, int]:
     m = re.fullmatch(r"(\d+)\s*[xX×]\s*(\d+)", text)
     if not m:
         raise SettingsError(f"board spec {spec!r}: expected a grid like 9x6, got {text!r}")
+    if max(len(m.group(1)), len(m.group(2))) > 6:  # past any bound (and int() refuses 4300 digits)
+        raise SettingsError(f"board spec {spec!r}: at most {MAX_SIDE}x{MAX_SIDE} inner corners or squares")
     return int(m.group(1)), int(m.group(2))
 
 

@@ -12,6 +12,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 from threadpoolctl import threadpool_limits
 
+from . import ranges
 from .fitting import metrics
 from .calibration import Calibration, ViewResult
 from .errors import DataError, SettingsError
@@ -77,11 +78,17 @@ def calibrate(
         return _calibrate(observations, method, progress, outlier_sigma, **settings)
 
 
+MAX_OUTLIER_SIGMA = 100.0  # residuals past 100 sigma: a threshold this high rejects nothing
+
+
+def check_outlier_sigma(value) -> float:
+    return ranges.number("outlier_sigma (0: keep every point)", value, 0, MAX_OUTLIER_SIGMA)
+
+
 def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Calibration:
     if method not in METHODS:
         raise SettingsError(f"unknown method {method!r}; available: {sorted(METHODS)}")
-    if not outlier_sigma >= 0:
-        raise SettingsError("outlier_sigma must be zero (keep every point) or positive")
+    check_outlier_sigma(outlier_sigma)
     fit_fn, settings_cls = METHODS[method]
     s = settings_from(settings_cls, settings)
     progress = progress or no_progress

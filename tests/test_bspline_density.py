@@ -51,10 +51,10 @@ def test_the_time_budget_stops_the_search_and_says_so():
 
 
 @pytest.mark.parametrize("settings, message", [
-    (dict(bandwidth_factor="wide"), "bandwidth_factor must be 'auto' or a number > 0"),
-    (dict(bandwidth_factor=0), "bandwidth_factor must be 'auto' or a number > 0"),
-    (dict(time_budget=0), "time_budget must be a number of seconds > 0"),
-    (dict(time_budget="fast"), "time_budget must be a number of seconds > 0"),
+    (dict(bandwidth_factor="wide"), "bandwidth_factor: expected 'auto' or a number above 0 and at most 100"),
+    (dict(bandwidth_factor=0), "bandwidth_factor: expected 'auto' or a number above 0 and at most 100"),
+    (dict(time_budget=0), r"time_budget \(seconds\): expected null \(no limit\) or a number above 0"),
+    (dict(time_budget="fast"), r"time_budget \(seconds\): expected null \(no limit\) or a number above 0"),
 ])
 def test_bad_bandwidth_or_budget_is_named(settings, message):
     with pytest.raises(SettingsError, match=message):

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from .conftest import synthetic
-from .test_service_harness import FAST, Service, wait_for
+from .test_service_harness import FAST, Service
 from .test_viewer_proxy import frames, listening
 
 pytestmark = pytest.mark.slow

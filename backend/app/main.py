@@ -18,7 +18,7 @@ from ..queue.recovery import Periodic, recover_stale, requeue_pending
 from ..queue.tasks import QueueUnavailable, build_queue
 from . import allow, errors
 from .context import Context
-from .limits import BodyLimit
+from .limits import BodyLimit, Limit
 from . import frontend
 from .header_limit import HeaderLimit
 from .headers import SecurityHeaders
@@ -38,6 +38,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         ctx = Context.open(settings)
+        system_tmp = spool_in(ctx.storage.tmp_dir())
         queue = build_queue(ctx)
         app.state.ctx, app.state.queue = ctx, queue
         try:
@@ -56,6 +57,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             reaper.stop()
             if app.state.viewer is not None:
                 app.state.viewer.stop()
+            spool_in(system_tmp)
 
     app = FastAPI(
         title="freecal",
@@ -69,7 +71,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.quota = ClientQuota(settings.max_jobs_per_client)
     errors.install(app)
     allow.install(app)  # 405: the methods the path takes
-    app.add_middleware(BodyLimit, max_bytes=settings.max_upload_bytes + 1024 * 1024)  # + multipart overhead
+    app.add_middleware(BodyLimit, **body_limits(settings))
     install_cors(app, settings.cors_origins)
     app.add_middleware(OriginGuard, allowed=Allowed.of(settings))  # outside CORS: a refused Host never gets in
     app.add_middleware(HeaderLimit)  # 431 before anything reads a header
@@ -83,6 +85,30 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     proxy.install(app)  # /viewer: the 3D view behind the same token
     frontend.mount(app)  # last: the page at / never shadows /api or /docs
     return app
+
+
+def body_limits(settings: Settings) -> dict:
+    """Uploads (POST /api/sets) take FREECAL_MAX_UPLOAD_BYTES; every other body (JSON: a job's
+    inline observations) FREECAL_MAX_OBSERVATIONS_BYTES."""
+    upload = Limit(settings.max_upload_bytes, "upload fewer or smaller files (the server's FREECAL_MAX_UPLOAD_BYTES)",
+                   slack=1024 * 1024)  # multipart framing and the form fields around the files
+    json_body = Limit(settings.max_observations_bytes, "send fewer views or points inline, or upload them as a set "
+                      "first (the server's FREECAL_MAX_OBSERVATIONS_BYTES)", slack=64 * 1024)  # the job's other fields
+    return {"default": json_body, "paths": {"/api/sets": upload}}
+
+
+def spool_in(directory) -> str | None:
+    """Make ``directory`` the process's temp folder; returns the previous one (to restore).
+
+    Multipart uploads are spooled (Starlette: SpooledTemporaryFile, past 1 MB) to the
+    temp folder before a handler sees them. Inside the data directory they count
+    against its disk, never fill the system's /tmp (often RAM), and stay anonymous:
+    the spool is unlinked at once, so nothing is left behind, even after a kill."""
+    import tempfile
+
+    previous = tempfile.tempdir
+    tempfile.tempdir = None if directory is None else str(directory)
+    return previous
 
 
 def start_viewer(ctx: Context):

@@ -1,6 +1,7 @@
 """What a done job's calibration does to its photos: rectified previews,
 undistortion maps and the geometric quality of the rectified boards (Table 7).
-Computed on request from the job's files and cached beside them."""
+Computed on request from the job's files and cached beside them (DATA/jobs/ID/
+rectified/NAME.jpg, DATA/jobs/ID/maps.npz)."""
 from __future__ import annotations
 
 import io
@@ -16,6 +17,7 @@ from calib_core.errors import CalibError
 from calib_core.products.rectify import fixed_camera, rectified_camera, rectify_image, undistort_maps
 
 from . import storage
+from .image_header import check_decodable
 
 PREVIEW_SIZE = 640  # pixels on the longest side
 
@@ -33,13 +35,16 @@ def _camera(cal: Calibration):
     return fixed_camera(0.5 * (fx + fy), tuple(cal.image_size))
 
 
-def preview(job_dir: Path, image: Path) -> Path | None:
+def preview(job_dir: Path, image: Path, max_pixels: int) -> Path | None:
     """A JPEG of ``image`` rectified by the job's calibration (cached), or None
-    if the image cannot be read."""
+    if the image cannot be read (ApiError 413 when it has more than ``max_pixels``)."""
     out = job_dir / "rectified" / f"{image.name}.jpg"
     if out.exists():
         return out
-    photo = cv2.imread(str(image), cv2.IMREAD_COLOR) if image.is_file() else None
+    if not image.is_file():
+        return None
+    check_decodable(image, image.name, max_pixels)  # the API never decodes past the limit (thumbnails.py)
+    photo = cv2.imread(str(image), cv2.IMREAD_COLOR)
     if photo is None:
         return None
     cal = Calibration.load(job_dir / "calibration.json")
@@ -54,16 +59,21 @@ def preview(job_dir: Path, image: Path) -> Path | None:
     return out
 
 
-def maps_npz(job_dir: Path) -> bytes:
+def maps_npz(job_dir: Path) -> Path:
     """The undistortion maps (float32 map_x, map_y: for each rectified pixel the
-    photo pixel) and the rectified camera, as an .npz for cv2.remap."""
+    photo pixel) and the rectified camera, as an .npz for cv2.remap. Made once and
+    kept as a result file: a large photo's maps take seconds and gigabytes to compute."""
+    out = job_dir / "maps.npz"
+    if out.exists():
+        return out
     cal = Calibration.load(job_dir / "calibration.json")
     camera = _camera(cal)
     map_x, map_y = undistort_maps(cal, camera)
     buf = io.BytesIO()
     np.savez_compressed(buf, map_x=map_x.astype(np.float32), map_y=map_y.astype(np.float32),
                         camera_matrix=camera.matrix, size=np.array(camera.size))
-    return buf.getvalue()
+    storage.write_bytes(out, buf.getvalue())
+    return out
 
 
 def quality(job_dir: Path, observations: Path) -> dict[str, Any]:

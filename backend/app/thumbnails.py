@@ -2,19 +2,24 @@
 
 Cached under ``DATA/sets/ID/thumbs/SIZE/NAME.jpg`` (deleted with the set); a
 preview older than its image is made again. OpenCV does the work: it is
-already a dependency, and reads every format the uploads accept.
+already a dependency, and reads every format the uploads accept. Never more
+pixels than the limit: the header is checked again before decoding (the limit
+may have been lowered since the upload), and OpenCV's own limit is set in every
+freecal process (backend/__init__.py).
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 from . import storage
+from .image_header import check_decodable
 
 SIZES = (160, 640)   # longest side in pixels: list thumbnails, and images to draw residuals on
 
 
-def thumbnail(images_dir: Path, cache_dir: Path, name: str, size: int) -> Path | None:
-    """The preview's path, or None when the image is missing or unreadable."""
+def thumbnail(images_dir: Path, cache_dir: Path, name: str, size: int, max_pixels: int) -> Path | None:
+    """The preview's path, or None when the image is missing or unreadable
+    (ApiError 413 when it has more than ``max_pixels``)."""
     import cv2
 
     src = images_dir / storage.safe_name(name)
@@ -23,6 +28,7 @@ def thumbnail(images_dir: Path, cache_dir: Path, name: str, size: int) -> Path |
     out = cache_dir / str(size) / (src.name + ".jpg")
     if out.is_file() and out.stat().st_mtime >= src.stat().st_mtime:
         return out
+    check_decodable(src, src.name, max_pixels)
     img = cv2.imread(str(src), cv2.IMREAD_COLOR)
     if img is None:
         return None

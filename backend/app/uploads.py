@@ -3,17 +3,17 @@ or one observations JSON (corners already detected). Every limit a client can
 hit answers 4xx naming the file and the limit."""
 from __future__ import annotations
 
-import json
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 from calib_core import Observations
+from calib_core.detection.detect import IMAGE_SUFFIXES  # one list: what the command line and the service read
 
-from . import storage
+from . import bounded_json, storage
 from .errors import ApiError
-from .image_header import IMAGE_SUFFIXES, image_size
+from .image_header import check_decodable, check_pixels
 from .settings import Settings
 
 
@@ -72,30 +72,14 @@ def _image_name(original: str, taken: list[str]) -> str:
     return name
 
 
-# What image files start with, whatever their name says (a .png of text is refused at once).
-MAGIC = (b"\x89PNG\r\n\x1a\n", b"\xff\xd8\xff", b"BM", b"II*\x00", b"MM\x00*", b"P2", b"P5", b"P3", b"P6")
-
-
 def _check_image(path: Path, original: str, settings: Settings) -> None:
-    """Refuse at upload what can never be a usable image: empty, not an image, too many pixels."""
-    with open(path, "rb") as f:
-        head = f.read(16)
-    if not head:
+    """Refuse at upload what can never be a usable image: empty, not an image, too many pixels, too small."""
+    if path.stat().st_size == 0:
         raise ApiError(422, f"{original!r} is empty (0 bytes): send the image file itself")
-    if not (head.startswith(MAGIC) or (head[:4] == b"RIFF" and head[8:12] == b"WEBP")):
-        raise ApiError(415, f"{original!r} is not an image: its content is not PNG, JPEG, BMP, TIFF, WebP or "
-                            "PGM/PPM, whatever its name says; send the camera's image files")
-    _check_pixels(path, original, settings)
-
-
-def _check_pixels(path: Path, original: str, settings: Settings) -> None:
-    size = image_size(path)
-    if size is not None and min(size) < MIN_SIDE:
-        raise ApiError(422, f"{original!r} is {size[0]}x{size[1]} pixels, too small to show a board (at least "
+    w, h = check_decodable(path, original, settings.max_image_pixels)
+    if min(w, h) < MIN_SIDE:
+        raise ApiError(422, f"{original!r} is {w}x{h} pixels, too small to show a board (at least "
                             f"{MIN_SIDE} px a side): send the camera's full-resolution images")
-    if size is not None and size[0] * size[1] > settings.max_image_pixels:
-        raise ApiError(413, f"{original!r} has {size[0]}x{size[1]} pixels, over the limit of "
-                            f"{settings.max_image_pixels} pixels per image: downscale it")
 
 
 def _unzip(up: Upload, images_dir: Path, settings: Settings) -> list[str]:
@@ -165,7 +149,16 @@ def _observations(up: Upload, settings: Settings) -> Observations:
     if len(raw) > settings.max_observations_bytes:
         raise ApiError(413, f"{up.name!r} is over the limit of {settings.max_observations_bytes} bytes")
     try:
-        doc = json.loads(raw)
-    except (ValueError, UnicodeDecodeError):
-        raise ApiError(422, f"{up.name!r} is not valid JSON; expected a freecal.observations/1 document") from None
-    return Observations.from_json(doc)  # FormatError → 422 naming the field
+        doc = bounded_json.parse(raw, repr(up.name))
+    except ApiError as exc:
+        raise ApiError(exc.status, f"{exc.detail}; expected a freecal.observations/1 document") from None
+    return observations_within(doc, repr(up.name), settings)
+
+
+def observations_within(doc: Any, what: str, settings: Settings) -> Observations:
+    """A freecal.observations/1 document (FormatError → 422 naming the field) whose image_size is
+    within the pixel limit: undistortion maps and previews are made at that size. For an uploaded
+    observations file and for a job's inline observations alike."""
+    obs = Observations.from_json(doc)
+    check_pixels(tuple(obs.image_size), f"the image_size of {what}", settings.max_image_pixels)
+    return obs

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import asyncio
 import urllib.error
+import urllib.parse
 import urllib.request
 
 from fastapi import FastAPI, Request, WebSocket
@@ -37,8 +38,10 @@ def install(app: FastAPI) -> None:
     def viewer_page(path: str, request: Request) -> Response:
         viewer = _viewer(request.app)
         headers = {"Accept-Encoding": request.headers.get("accept-encoding", "identity")}
+        # the path arrives decoded ("a%20b" is "a b"): quoted again, it is a URL (urllib refuses spaces)
+        url = f"http://{viewer.address}/{urllib.parse.quote(path)}"
         try:  # a plain def: FastAPI runs it in its thread pool, so this blocking read is fine
-            with urllib.request.urlopen(urllib.request.Request(f"http://{viewer.address}/{path}", headers=headers),
+            with urllib.request.urlopen(urllib.request.Request(url, headers=headers),
                                         timeout=30) as r:
                 status, body, got = r.status, r.read(), r.headers
         except urllib.error.HTTPError as e:

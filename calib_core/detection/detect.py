@@ -24,7 +24,8 @@ from .detect_image import ImageResult, detect_file
 from ..errors import DataError
 from ..observations import Observations, View
 
-IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp"}
+# What the command line and the service read (the service checks each one's header: backend/app/image_header.py)
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm", ".pbm", ".pnm")
 
 
 @dataclass

@@ -10,6 +10,7 @@ whose ids are absolute, so partial boards come naturally.
 from __future__ import annotations
 
 import logging
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -60,14 +61,29 @@ def read_gray(path: str | Path) -> np.ndarray | None:
         return None
     if data.size == 0:
         return None
-    return cv2.imdecode(data, cv2.IMREAD_GRAYSCALE | cv2.IMREAD_IGNORE_ORIENTATION)
+    try:
+        return cv2.imdecode(data, cv2.IMREAD_GRAYSCALE | cv2.IMREAD_IGNORE_ORIENTATION)
+    except cv2.error as exc:
+        if "MAX_IMAGE" not in str(exc):
+            raise
+        # OpenCV's decoding limit (OPENCV_IO_MAX_IMAGE_PIXELS: freecal sets it from FREECAL_MAX_IMAGE_PIXELS)
+        limit = os.environ.get("OPENCV_IO_MAX_IMAGE_PIXELS", "OpenCV's default")
+        raise TooManyPixels(f"more pixels than the limit of {limit} (FREECAL_MAX_IMAGE_PIXELS): downscale it, "
+                            "or raise the limit") from None
+
+
+class TooManyPixels(ValueError):
+    """The image declares more pixels than OpenCV may decode here."""
 
 
 def detect_file(path: str | Path, board: BoardSpec, name: str | None = None) -> ImageResult:
     """Detect the board in one image file; every failure becomes a rejected result."""
     name = name or Path(path).name
     try:
-        gray = read_gray(path)
+        try:
+            gray = read_gray(path)
+        except TooManyPixels as exc:
+            return ImageResult(name, "rejected", 0, str(exc))
         if gray is None:
             return ImageResult(name, "rejected", 0, "could not decode the file as an image")
         res = detect_gray(gray, board)

@@ -14,10 +14,16 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.spatial import Delaunay, QhullError
 
+from .. import ranges
 from ..errors import SettingsError
 
 
 STRATEGIES = ("kde", "kde-paper", "uniform", "explicit")
+# Knot intervals per direction: the grid has (n + 3)² control points, and the solver's
+# matrices grow with their square (1 000 000 intervals asked for 14.6 TiB). 50 is over
+# three times what the automatic choice ever takes (15).
+MAX_INTERVALS = 50
+MAX_BANDWIDTH_FACTOR = 100.0
 
 
 @dataclass
@@ -39,16 +45,21 @@ class KnotSettings:
             raise SettingsError(f"knots: unknown strategy {self.strategy!r}; use one of {STRATEGIES}")
         if self.bandwidth not in ("scott", "silverman"):
             raise SettingsError(f"bandwidth: unknown rule {self.bandwidth!r}; use 'scott' or 'silverman'")
-        if not self.bandwidth_factor > 0:
-            raise SettingsError("bandwidth_factor must be positive")
-        if not 0 < self.window_ratio < 1:
-            raise SettingsError("window_ratio must lie in (0, 1)")
-        if self.max_intervals < 1:
-            raise SettingsError("max_intervals must be at least 1")
-        if min(self.intervals) < 1:
-            raise SettingsError("intervals must be at least 1 per direction")
+        ranges.number("bandwidth_factor", self.bandwidth_factor, 0, MAX_BANDWIDTH_FACTOR, above_low=True)
+        ranges.number("window_ratio", self.window_ratio, 0, 1, above_low=True, below_high=True)
+        ranges.whole("max_intervals", self.max_intervals, 1, MAX_INTERVALS)
+        for n in self.intervals:
+            ranges.whole("intervals (per direction)", n, 1, MAX_INTERVALS)
+        if self.min_support is not None:
+            ranges.whole("min_support", self.min_support, 1, 1_000_000, alternative="null (automatic)")
         if self.strategy == "explicit" and (self.interior is None or len(self.interior) != 2):
             raise SettingsError("knots 'explicit' needs interior_knots: [[u knots...], [v knots...]]")
+        for axis in self.interior or ():
+            if not isinstance(axis, (list, tuple)) or len(axis) > MAX_INTERVALS - 1:
+                raise SettingsError(f"interior_knots: expected two lists of at most {MAX_INTERVALS - 1} knots "
+                                    f"(pixels) each, got {ranges.shown(self.interior)}")
+            for knot in axis:
+                ranges.number("interior_knots", knot, -1e6, 1e6)
 
 
 def local_std_weights(d: np.ndarray, z: np.ndarray, settings: KnotSettings) -> np.ndarray:

@@ -25,9 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import ranges
+from ..errors import DataError
 from ..fitting.choice import Candidate, ModelChoice, choose
 from ..fitting.crossval import linearised_view_errors
-from ..errors import DataError, SettingsError
 from ..fitting.init import initialise
 from ..fitting.solve import Data, spread_views
 from .bspline import BSplineSettings, fit_core, fit_field, ideal_samples
@@ -39,10 +40,7 @@ class AutoSettings:
     decision_views: int = 20  # above this many views, the choice is made on this many (spread over the set)
 
     def validate(self) -> None:
-        for name, low, high in (("decision_views", 3, 1000),):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-                raise SettingsError(f"{name}: expected a whole number from {low} to {high}, got {value!r}")
+        ranges.whole("decision_views", self.decision_views, 3, 1000)
 
 
 @dataclass(frozen=True)

@@ -30,12 +30,12 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..models import camera
-from ..fitting import knots
-from ..fitting import metrics
-from ..models.bspline_basis import BSplineField, clamped_knots
+from .. import ranges
+from ..fitting import knots, metrics
 from ..fitting.choice import Candidate, choose
 from ..fitting.crossval import linearised_view_errors
+from ..models import camera
+from ..models.bspline_basis import BSplineField, clamped_knots
 from ..errors import DataError, SettingsError
 from ..fitting.init import initialise
 from ..fitting.metrics import design_diagnostics
@@ -61,6 +61,7 @@ STALE_GRIDS = 2
 # with a time budget the search covers every grid at 1.0 before the others.
 AUTO_BANDWIDTH_FACTORS = (1.0, 1.2, 0.8, 1.5)
 CORES = ("none", "rational", "fisheye")
+MAX_LAMBDA = 1e6  # regularisation weights: far past this the field is flat whatever the data
 
 
 @dataclass
@@ -85,37 +86,33 @@ class BSplineSettings:
     def validate(self) -> None:
         if self.core not in CORES:
             raise SettingsError(f"core: expected one of {CORES}, got {self.core!r}")
-        if not (isinstance(self.lambda_reg, (int, float)) and self.lambda_reg >= 0):
-            raise SettingsError(f"lambda_reg must be a number ≥ 0, got {self.lambda_reg!r}")
-        if self.lambda_smooth != AUTO and not (isinstance(self.lambda_smooth, (int, float)) and self.lambda_smooth >= 0):
-            raise SettingsError(f"lambda_smooth must be 'auto' or a number ≥ 0, got {self.lambda_smooth!r}")
-        if self.bandwidth_factor != AUTO and not self._positive(self.bandwidth_factor):
-            raise SettingsError(f"bandwidth_factor must be 'auto' or a number > 0, got {self.bandwidth_factor!r}")
-        if self.time_budget is not None and not self._positive(self.time_budget):
-            raise SettingsError(f"time_budget must be a number of seconds > 0 (or None: no limit), "
-                                f"got {self.time_budget!r}")
+        ranges.number("lambda_reg", self.lambda_reg, 0, MAX_LAMBDA)
+        if self.lambda_smooth != AUTO:
+            ranges.number("lambda_smooth", self.lambda_smooth, 0, MAX_LAMBDA, alternative="'auto'")
+        if self.bandwidth_factor != AUTO:
+            ranges.number("bandwidth_factor", self.bandwidth_factor, 0, knots.MAX_BANDWIDTH_FACTOR, above_low=True,
+                          alternative="'auto'")
+        if self.time_budget is not None:
+            ranges.number("time_budget (seconds)", self.time_budget, 0, 86_400, above_low=True,
+                          alternative="null (no limit)")
         if self.base not in camera.BASES:
             raise SettingsError(f"base: expected one of {camera.BASES}, got {self.base!r}")
         if self.core != "none" and self.base != "pinhole":
             raise SettingsError("a parametric core brings its own projection: use --base only with --core none")
         if self.weighting not in knots.WEIGHTINGS:
             raise SettingsError(f"weighting: expected one of {knots.WEIGHTINGS}, got {self.weighting!r}")
-        if self.max_iterations < 1:
-            raise SettingsError("max_iterations must be at least 1")
-        if not 0 < self.ftol < 1:
-            raise SettingsError("ftol must lie in (0, 1)")
+        ranges.iterations_and_tolerance(self.max_iterations, self.ftol)
         if isinstance(self.intervals, int):
             self.intervals = (self.intervals, self.intervals)
         elif self.intervals != AUTO:
             try:
+                if len(self.intervals) != 2:
+                    raise IndexError
                 self.intervals = (int(self.intervals[0]), int(self.intervals[1]))
             except (TypeError, ValueError, IndexError):
-                raise SettingsError(f"intervals must be 'auto', N or (N, M), got {self.intervals!r}") from None
+                raise SettingsError(f"intervals must be 'auto', N or (N, M), each from 1 to {knots.MAX_INTERVALS}, "
+                                    f"got {self.intervals!r}") from None
         self.knot_settings((10, 10) if self.intervals == AUTO else self.intervals).validate()
-
-    @staticmethod
-    def _positive(x) -> bool:
-        return isinstance(x, (int, float)) and not isinstance(x, bool) and x > 0
 
     def knot_settings(self, intervals: tuple[int, int], bandwidth_factor: float | None = None) -> knots.KnotSettings:
         """The knot placement's settings; ``bandwidth_factor`` overrides the

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import DataError, SettingsError
+from .. import ranges
+from ..errors import DataError
 from ..fitting.init import initialise
 from ..fitting.solve import Data, SolveSettings, levenberg_marquardt
 from .common import Fit, Progress
@@ -24,12 +25,8 @@ class FisheyeSettings:
     ftol: float = 1e-12
 
     def validate(self) -> None:
-        if not 1 <= self.n_coefficients <= 8:
-            raise SettingsError(f"n_coefficients: expected 1 … 8 (4 = cv2.fisheye), got {self.n_coefficients}")
-        if self.max_iterations < 1:
-            raise SettingsError("max_iterations must be at least 1")
-        if not 0 < self.ftol < 1:
-            raise SettingsError("ftol must lie in (0, 1)")
+        ranges.whole("n_coefficients", self.n_coefficients, 1, 8)  # 4: cv2.fisheye's model
+        ranges.iterations_and_tolerance(self.max_iterations, self.ftol)
 
 
 def fit_fisheye(data: Data, image_size, s: FisheyeSettings, progress: Progress) -> Fit:

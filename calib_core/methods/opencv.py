@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import ranges
 from ..models import camera
 from ..errors import DataError, SettingsError
 from ..fitting.init import initialise
@@ -34,10 +35,7 @@ class OpenCVSettings:
     def validate(self) -> None:
         if self.n_coefficients not in ALLOWED_COUNTS:
             raise SettingsError(f"n_coefficients: OpenCV takes {ALLOWED_COUNTS}, got {self.n_coefficients}")
-        if self.max_iterations < 1:
-            raise SettingsError("max_iterations must be at least 1")
-        if not 0 < self.ftol < 1:
-            raise SettingsError("ftol must lie in (0, 1)")
+        ranges.iterations_and_tolerance(self.max_iterations, self.ftol)
 
 
 @dataclass

@@ -21,13 +21,18 @@ from typing import Callable
 
 import numpy as np
 
+from .. import ranges
+from ..errors import DataError
 from ..models import camera
-from ..errors import DataError, SettingsError
 from ..models.mls import MLSField, MLSModel
 from ..models.tps import TPSField, TPSModel, affine_basis, kernel_matrix
 from ..fitting.solve import Data, SolveResult, SolveSettings, levenberg_marquardt, residuals
 from .common import Fit, Progress
 from .opencv import OpenCVSettings, fit_opencv
+
+
+MAX_CENTERS = 2000   # a TPS system is max_centers² (2000: 32 MB, solved once per fold and grid value)
+MAX_FOLDS = 20
 
 
 @dataclass
@@ -40,14 +45,10 @@ class TPSSettings:
     ftol: float = 1e-12
 
     def validate(self) -> None:
-        if isinstance(self.smoothing, (int, float)):
-            self.smoothing = [float(self.smoothing)]
-        if not self.smoothing or any(not (v > 0) for v in self.smoothing):
-            raise SettingsError("smoothing: expected positive values, e.g. [1e-6, 1e-4, 1e-2]")
-        if self.max_centers < 10:
-            raise SettingsError("max_centers must be at least 10")
-        if self.folds < 2:
-            raise SettingsError("folds must be at least 2")
+        # each grid value is a cross-validated fit, and max_centers² the size of the TPS system
+        self.smoothing = ranges.values("smoothing", self.smoothing, 0, 1e6, above_low=True)
+        ranges.whole("max_centers", self.max_centers, 10, MAX_CENTERS)
+        ranges.whole("folds", self.folds, 2, MAX_FOLDS)
         OpenCVSettings(self.zhang_coefficients, self.max_iterations, self.ftol).validate()
 
 
@@ -61,14 +62,9 @@ class MLSSettings:
     ftol: float = 1e-12
 
     def validate(self) -> None:
-        if isinstance(self.support, (int, float)):
-            self.support = [float(self.support)]
-        if not self.support or any(not (0 < v <= 1) for v in self.support):
-            raise SettingsError("support: expected fractions of the image diagonal in (0, 1], e.g. [0.05, 0.1]")
-        if not self.ridge > 0:
-            raise SettingsError("ridge must be positive")
-        if self.folds < 2:
-            raise SettingsError("folds must be at least 2")
+        self.support = ranges.values("support (fractions of the image diagonal)", self.support, 0, 1, above_low=True)
+        ranges.number("ridge", self.ridge, 0, 1e6, above_low=True)
+        ranges.whole("folds", self.folds, 2, MAX_FOLDS)
         OpenCVSettings(self.zhang_coefficients, self.max_iterations, self.ftol).validate()
 
 

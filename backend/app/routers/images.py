@@ -18,7 +18,7 @@ router = APIRouter(prefix="/api/sets", tags=["sets"])
 
 
 @router.get("/{set_id}/images/{name}/thumbnail", response_class=FileResponse,
-            responses={404: {"model": Message}, 422: {"model": Message}})
+            responses={404: {"model": Message}, 413: {"model": Message}, 422: {"model": Message}})
 async def read_thumbnail(ctx: ContextDep, set_id: str, name: str,
                          size: Annotated[int, Query(json_schema_extra={"enum": list(SIZES)})] = SIZES[0]) -> FileResponse:
     """The image scaled down to ``size`` pixels on its longest side (160 or 640), JPEG, cached."""
@@ -28,7 +28,7 @@ async def read_thumbnail(ctx: ContextDep, set_id: str, name: str,
     if name not in {im["name"] for im in row.get("images") or []}:
         raise ApiError(404, f"set {set_id} has no image {name!r}")
     path = await run_in_threadpool(thumbnail, ctx.storage.images_dir(set_id), ctx.storage.set_dir(set_id) / "thumbs",
-                                   name, size)
+                                   name, size, ctx.settings.max_image_pixels)
     if path is None:
         raise ApiError(404, f"image {name!r} of set {set_id} cannot be read")
     return FileResponse(path, media_type="image/jpeg", headers={"Cache-Control": PRIVATE_IMAGE})

@@ -6,6 +6,7 @@ from typing import Literal
 from fastapi import APIRouter, Request, Response, status
 from fastapi.responses import FileResponse
 
+from ..bounded_json import BoundedJSONRoute
 from ..deps import ContextDep, QueueDep
 from ..errors import ApiError
 from ..presenters import job_public
@@ -14,7 +15,8 @@ from ..schemas import JobCreate, JobPublic, JobsPublic, Message
 from ..security import QuotaDep, client_of
 from ..services import jobs as service
 
-router = APIRouter(prefix="/api/jobs", tags=["jobs"])
+# BoundedJSONRoute: the JSON body (inline observations: up to 64 MiB) is parsed off the event loop, depth bounded
+router = APIRouter(prefix="/api/jobs", tags=["jobs"], route_class=BoundedJSONRoute)
 ERRORS = {404: {"model": Message}, 409: {"model": Message}, 503: {"model": Message}, 422: {"model": Message},
           429: {"model": Message}}
 

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from fastapi import APIRouter
-from fastapi.responses import FileResponse, Response
+from fastapi.responses import FileResponse
 from starlette.concurrency import run_in_threadpool
 
 from .. import rectified, storage
@@ -19,7 +19,7 @@ from ..services import jobs as service
 from ..services import sets as sets_service
 
 router = APIRouter(prefix="/api/jobs", tags=["jobs"])
-ERRORS = {404: {"model": Message}, 409: {"model": Message}}
+ERRORS = {404: {"model": Message}, 409: {"model": Message}, 413: {"model": Message}}
 
 
 def _done(ctx, job_id: str) -> dict:
@@ -39,19 +39,19 @@ async def read_rectified(ctx: ContextDep, job_id: str, name: str) -> FileRespons
     if name not in images:
         raise ApiError(404, f"the set of job {job_id} has no image {name!r}")
     path = await run_in_threadpool(rectified.preview, ctx.storage.job_dir(job_id),
-                                   ctx.storage.images_dir(job["set_id"]) / storage.safe_name(name))
+                                   ctx.storage.images_dir(job["set_id"]) / storage.safe_name(name),
+                                   ctx.settings.max_image_pixels)
     if path is None:
         raise ApiError(404, f"image {name!r} cannot be read")
     return FileResponse(path, media_type="image/jpeg", headers={"Cache-Control": PRIVATE_IMAGE})
 
 
-@router.get("/{job_id}/maps.npz", responses=ERRORS)
-async def read_maps(ctx: ContextDep, job_id: str) -> Response:
+@router.get("/{job_id}/maps.npz", response_class=FileResponse, responses=ERRORS)
+async def read_maps(ctx: ContextDep, job_id: str) -> FileResponse:
     """Undistortion maps for cv2.remap (float32 map_x, map_y, camera_matrix, size)."""
     _done(ctx, job_id)
-    data = await run_in_threadpool(rectified.maps_npz, ctx.storage.job_dir(job_id))
-    return Response(data, media_type="application/octet-stream",
-                    headers={"Content-Disposition": f'attachment; filename="freecal-job-{job_id}-maps.npz"'})
+    path = await run_in_threadpool(rectified.maps_npz, ctx.storage.job_dir(job_id))
+    return FileResponse(path, media_type="application/octet-stream", filename=f"freecal-job-{job_id}-maps.npz")
 
 
 @router.get("/{job_id}/figures/quality", responses=ERRORS)

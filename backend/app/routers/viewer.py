@@ -6,12 +6,13 @@ from typing import Any
 from fastapi import APIRouter, Request
 from pydantic import BaseModel, Field
 
+from ..bounded_json import BoundedJSONRoute
 from ..deps import ContextDep
 from ..errors import ApiError
 from ..schemas import Message
 from ..services import jobs as job_service
 
-router = APIRouter(prefix="/api/viewer", tags=["viewer"])
+router = APIRouter(prefix="/api/viewer", tags=["viewer"], route_class=BoundedJSONRoute)  # depth-bounded JSON
 
 
 class ViewerPublic(BaseModel):

@@ -4,13 +4,14 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from calib_core import Observations
+from calib_core import ranges
 from calib_core.errors import SettingsError
 from calib_core.methods import METHODS
 from calib_core.methods.common import settings_from
+from calib_core.pipeline import check_outlier_sigma
 
 from ...queue.tasks import Queue
-from .. import storage
+from .. import storage, uploads
 from ..context import Context
 from ..errors import ApiError, not_found
 from ..repository import jobs, sets
@@ -22,6 +23,7 @@ from .ids import new_id
 COMPARE = "compare"
 PIPELINE_KEYS = ("outlier_sigma",)     # settings of calibrate() itself, not of a method
 COMPARE_KEYS = ("methods", "splits")
+MAX_SPLITS = 20                        # folds over the views: each is a calibration of every method
 
 
 def compare_available() -> bool:
@@ -45,8 +47,8 @@ def validate(method: str, settings: dict[str, Any]) -> None:
         if unknown:
             raise ApiError(422, f"unknown compare setting(s) {unknown}; known: {list(COMPARE_KEYS)}")
         splits = settings.get("splits", 5)
-        if not isinstance(splits, int) or isinstance(splits, bool) or splits < 0 or splits == 1:
-            raise ApiError(422, "settings.splits: expected 0 (no cross-validation) or an integer of at least 2")
+        if splits != 0:
+            ranges.whole("splits", splits, 2, MAX_SPLITS, alternative="0 (no cross-validation)")
         chosen = settings.get("methods")
         if chosen is not None and not (isinstance(chosen, list) and all(isinstance(m, str) for m in chosen)):
             raise ApiError(422, "settings.methods: expected a list of method names, e.g. [\"zhang\", \"bspline\"]")
@@ -56,9 +58,7 @@ def validate(method: str, settings: dict[str, Any]) -> None:
         return
     if method not in METHODS:
         raise ApiError(422, f"unknown method {method!r}; available: {sorted(METHODS)} or 'compare'")
-    sigma = settings.get("outlier_sigma", 0.0)
-    if not isinstance(sigma, (int, float)) or sigma < 0:
-        raise ApiError(422, "outlier_sigma must be zero (keep every point) or a positive number")
+    check_outlier_sigma(settings.get("outlier_sigma", 0.0))
     _, cls = METHODS[method]
     try:
         settings_from(cls, {k: v for k, v in settings.items() if k not in PIPELINE_KEYS})
@@ -82,7 +82,7 @@ def create(ctx: Context, queue: Queue, body: JobCreate) -> str:
     validate(body.method, body.settings)
     job_id = new_id()
     if body.observations is not None:
-        obs = Observations.from_json(body.observations)  # FormatError → 422
+        obs = uploads.observations_within(body.observations, "the inline observations", ctx.settings)
         storage.write_json(ctx.storage.job_dir(job_id) / "input.json", obs.to_json())
     else:
         row = sets.get(ctx.db, body.set_id)

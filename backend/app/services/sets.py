@@ -1,11 +1,10 @@
 """Image sets: upload, read, delete."""
 from __future__ import annotations
 
-import json
 from typing import Any
 
 from ...queue.tasks import Queue
-from .. import storage, uploads
+from .. import bounded_json, storage, uploads
 from ..context import Context
 from ..errors import ApiError, not_found
 from ..repository import jobs, sets
@@ -62,9 +61,10 @@ def _board(spec: str | None) -> Any:
     text = spec.strip()
     if text.startswith("{"):  # a board object as in formats.md §1
         try:
-            return BoardSpec.from_json(json.loads(text))  # FormatError → 422
-        except ValueError:
-            raise ApiError(422, "board: not valid JSON; give a spec string like chessboard:9x6:25mm") from None
+            doc = bounded_json.parse(text, "board")
+        except ApiError as exc:
+            raise ApiError(exc.status, f"{exc.detail}; or give a spec string like chessboard:9x6:25mm") from None
+        return BoardSpec.from_json(doc)  # FormatError → 422
     return BoardSpec.parse(text)  # SettingsError → 422 with its message
 
 

@@ -23,6 +23,7 @@ from scipy.spatial.transform import Rotation
 
 from ..models import camera
 from ..errors import DataError
+from ..models.base import CameraModel
 from ..models.fisheye import FisheyeModel
 from .solve import Data, SolveSettings, levenberg_marquardt, spread_views
 
@@ -82,7 +83,7 @@ def _onto_axis(directions: np.ndarray) -> np.ndarray:
     return Rotation.from_rotvec(axis / np.maximum(sine, 1e-12) * angle).as_matrix()
 
 
-def poses_from_rays(model: FisheyeModel, data: Data) -> np.ndarray | None:
+def poses_from_rays(model: CameraModel, data: Data) -> np.ndarray | None:
     """A pose per view from the homography between the board plane and the
     model's rays of the observed corners; None if some view cannot be posed.
 

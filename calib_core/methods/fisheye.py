@@ -14,6 +14,7 @@ import numpy as np
 from ..errors import DataError, SettingsError
 from ..fitting.init import initialise
 from ..fitting.solve import Data, SolveSettings, levenberg_marquardt
+from ..models.fisheye import FisheyeModel
 from .common import Fit, Progress
 
 
@@ -32,7 +33,7 @@ class FisheyeSettings:
             raise SettingsError("ftol must lie in (0, 1)")
 
 
-def fit_fisheye(data: Data, image_size, s: FisheyeSettings, progress: Progress) -> Fit:
+def fit_fisheye(data: Data, image_size: tuple[int, int], s: FisheyeSettings, progress: Progress) -> Fit[FisheyeModel]:
     progress("initialise", 0.0)
     init = initialise(data, image_size, n_coefficients=s.n_coefficients)
     progress("levenberg-marquardt", 0.3)

@@ -136,11 +136,11 @@ def _subsample(data: Data, max_views: int, per_view: int, rng: np.random.Generat
     (spread over the set): enough to score and shape a camera, and the cost
     no longer grows with the number of views."""
     data = spread_views(data, max_views)
-    keep = []
+    per_view_picks = []
     for k in range(data.n_views):
         idx = np.flatnonzero(data.view_index == k)
-        keep.append(idx if len(idx) <= per_view else np.sort(rng.choice(idx, per_view, replace=False)))
-    keep = np.concatenate(keep)
+        per_view_picks.append(idx if len(idx) <= per_view else np.sort(rng.choice(idx, per_view, replace=False)))
+    keep = np.concatenate(per_view_picks)
     return Data(data.object_points[keep], data.image_points[keep], data.view_index[keep], data.n_views)
 
 

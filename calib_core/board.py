@@ -121,12 +121,19 @@ class BoardSpec:
         col, row = ids % c + off, ids // c + off
         return np.stack([col * self.square_size, row * self.square_size, np.zeros(len(ids))], axis=-1)
 
+    def _markers(self) -> tuple[float, str]:
+        """A ChArUco board's marker size and ArUco dictionary (``validate`` requires both)."""
+        if self.marker_size is None or self.dictionary is None:
+            raise SettingsError(f"a {self.type} board needs a marker size and an ArUco dictionary")
+        return self.marker_size, self.dictionary
+
     def cv_charuco(self):
         """OpenCV's CharucoBoard for this spec (ChArUco only)."""
         import cv2
 
-        d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
-        board = cv2.aruco.CharucoBoard((self.cols, self.rows), float(self.square_size), float(self.marker_size), d)
+        marker_size, dictionary = self._markers()
+        d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary))
+        board = cv2.aruco.CharucoBoard((self.cols, self.rows), float(self.square_size), float(marker_size), d)
         board.setLegacyPattern(bool(self.legacy))
         return board
 
@@ -167,9 +174,10 @@ class BoardSpec:
         if self.type == "chessboard":
             return {"type": "chessboard", "cols": self.cols, "rows": self.rows,
                     "square_size": float(self.square_size), "units": self.units}
+        marker_size, dictionary = self._markers()
         return {"type": "charuco", "squares_x": self.cols, "squares_y": self.rows,
-                "square_size": float(self.square_size), "marker_size": float(self.marker_size),
-                "dictionary": self.dictionary, "legacy": bool(self.legacy), "units": self.units}
+                "square_size": float(self.square_size), "marker_size": float(marker_size),
+                "dictionary": dictionary, "legacy": bool(self.legacy), "units": self.units}
 
     @classmethod
     def from_json(cls, doc: dict) -> "BoardSpec":

@@ -91,7 +91,7 @@ class Calibration:
             "format": FORMAT,
             "image_size": list(self.image_size),
             "model": self.method,
-            "base": self.model.base if self.model.kind not in ("fisheye", "opencv", "hybrid") else "pinhole",
+            "base": self.model.base_json(),
             "intrinsics": self.model.intrinsics_json(),
             "distortion": self.model.distortion_json(),
             "views": [

@@ -135,15 +135,14 @@ def distortion_field(cal: Calibration) -> dict[str, Any]:
 
 
 def knot_grid(cal: Calibration) -> dict[str, Any] | None:
-    dist = cal.to_json()["distortion"]
-    field = dist if dist.get("type") == "bspline" else dist.get("field") if dist.get("type") == "hybrid" else None
-    if not field:
+    """The B-spline field's knots and interval breaks, or None for a model without one."""
+    field, breaks = cal.model.bspline_field, cal.model.knot_breaks()
+    if field is None or breaks is None:
         return None
-    ku, kv = field["knots_u"], field["knots_v"]
-    return {"type": dist["type"], "degree": field.get("degree", [3, 3]),
-            "knots_u": ku, "knots_v": kv,
-            "breaks_u": sorted(set(ku[3:-3])), "breaks_v": sorted(set(kv[3:-3])),
-            "coordinates": "ideal pixels" if dist["type"] == "bspline" else "pixels of the parametric core"}
+    doc = field.to_json()
+    return {"type": cal.model.kind, "degree": doc["degree"], "knots_u": doc["knots_u"], "knots_v": doc["knots_v"],
+            "breaks_u": breaks[0].tolist(), "breaks_v": breaks[1].tolist(),
+            "coordinates": "ideal pixels" if cal.model.kind == "bspline" else "pixels of the parametric core"}
 
 
 def comparison_rows(result: dict[str, Any]) -> list[dict[str, Any]]:

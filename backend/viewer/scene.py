@@ -175,11 +175,10 @@ def _grid_faces(nu: int, nv: int) -> np.ndarray:
 
 def _knot_lines(cal: Any, w: int, h: int) -> np.ndarray | None:
     """Segments (M, 2, 2) in ideal pixels along the knot breaks of a B-spline field, or None."""
-    dist = cal.to_json()["distortion"]
-    fld = dist if dist.get("type") == "bspline" else dist.get("field") if dist.get("type") == "hybrid" else None
-    if not fld:
+    breaks = cal.model.knot_breaks()
+    if breaks is None:
         return None
-    bu, bv = sorted(set(fld["knots_u"])), sorted(set(fld["knots_v"]))
+    bu, bv = breaks[0].tolist(), breaks[1].tolist()
     segs = [[[x, bv[0]], [x, bv[-1]]] for x in bu] + [[[bu[0], y], [bu[-1], y]] for y in bv]
     return np.asarray(segs, float)
 

@@ -47,6 +47,6 @@ def load(folder: str | Path, board: str | Path) -> Observations:
     for path in sorted(Path(folder).glob("*.orpc")):
         size, ids, pixels = read_corners(path)
         views.append(View(path.with_suffix(".png").name, corners[ids], pixels, ids))
-    if not views:
+    if not views or size is None:
         raise FormatError(f"{folder}: no .orpc corner files")
     return Observations(size, views, {"type": "babelcalib", "file": Path(board).name, "units": "mm"})

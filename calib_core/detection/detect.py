@@ -164,6 +164,20 @@ def _reject_odd_sizes(results: list[ImageResult]) -> None:
             r.ids = r.points = None
 
 
+def _image_size(result: ImageResult) -> tuple[int, int]:
+    """(width, height) of an image that was read."""
+    if result.width is None or result.height is None:
+        raise ValueError(f"{result.name}: {result.status} image has no size")
+    return result.width, result.height
+
+
+def _view(result: ImageResult, board: BoardSpec) -> View:
+    """A used image's corners as a view of ``board``."""
+    if result.ids is None or result.points is None:
+        raise ValueError(f"{result.name}: {result.status} image has no corners")
+    return View(result.name, board.object_points(result.ids), result.points, result.ids)
+
+
 def _assemble(results: list[ImageResult], board: BoardSpec) -> Detection:
     reports = [ImageReport(r.name, r.status, r.n_corners, r.reason, r.sharpness, r.width, r.height) for r in results]
     used = [r for r in results if r.status == "used"]
@@ -172,8 +186,8 @@ def _assemble(results: list[ImageResult], board: BoardSpec) -> Detection:
         warnings.append(f"the board ({board.to_spec()}) was found in none of the {len(results)} images; "
                         "check the board spec (inner corners for a chessboard) and the images")
         return Detection(None, reports, {}, warnings)
-    size = (used[0].width, used[0].height)
-    views = [View(r.name, board.object_points(r.ids), r.points, r.ids) for r in used]
+    size = _image_size(used[0])
+    views = [_view(r, board) for r in used]
     obs = Observations(size, views, board.to_json())
     cov = coverage(np.concatenate([v.image_points for v in views]), size)
     msg = coverage_warning(cov)

@@ -91,7 +91,10 @@ def gap_strides(grid: np.ndarray, gray: np.ndarray) -> tuple[np.ndarray, np.ndar
     # Medians along each gap: the tags and markers of tagged boards fill a minority of cells.
     down = np.median(np.abs(q[0.5, 0.25] - q[0.5, 0.75]), axis=1) / contrast   # (h-1,)
     along = np.median(np.abs(q[0.25, 0.5] - q[0.75, 0.5]), axis=0) / contrast  # (w-1,)
-    return tuple(np.where(x < 0.25, 1, np.where(x > 0.5, 2, 0)) for x in (down, along))
+    def classes(x: np.ndarray) -> np.ndarray:
+        return np.where(x < 0.25, 1, np.where(x > 0.5, 2, 0))
+
+    return classes(down), classes(along)
 
 
 def lattice_score(grid: np.ndarray, gray: np.ndarray) -> float:

@@ -65,7 +65,7 @@ def neighbour_correlation(residuals: np.ndarray, object_points: np.ndarray, view
     smooth error is left. The p-value is the share of within-view shufflings
     of the residuals that reach the observed ρ."""
     rng = np.random.default_rng(seed)
-    pairs = []
+    neighbours = []
     for k in np.unique(view_index):
         idx = np.flatnonzero(view_index == k)
         if len(idx) < 3:
@@ -74,10 +74,10 @@ def neighbour_correlation(residuals: np.ndarray, object_points: np.ndarray, view
         tree = cKDTree(pts)
         spacing = tree.query(pts, k=2)[0][:, 1].min()
         p = tree.query_pairs(1.01 * spacing, output_type="ndarray")
-        pairs.append(idx[p])
-    if not pairs:
+        neighbours.append(idx[p])
+    if not neighbours:
         return {"rho": float("nan"), "p_value": float("nan"), "n_pairs": 0}
-    pairs = np.concatenate(pairs)
+    pairs = np.concatenate(neighbours)
     r = residuals - residuals.mean(axis=0)
 
     def rho(rr: np.ndarray) -> float:
@@ -200,7 +200,8 @@ def _verdict(results: dict[str, dict], cv_residuals: dict) -> tuple[str | None, 
     order = sorted(ok, key=lambda n: SIMPLEST_FIRST.index(n) if n in SIMPLEST_FIRST else len(SIMPLEST_FIRST))
     detail: dict[str, Any]
     if all(n in cv_residuals for n in order):
-        candidates, counts = [], None
+        candidates = []
+        counts = np.zeros(0, dtype=np.int64)  # points per view: the same for every candidate
         for n in order:
             r, _, view = cv_residuals[n]
             ids, index = np.unique(view, return_inverse=True)
@@ -215,7 +216,7 @@ def _verdict(results: dict[str, dict], cv_residuals: dict) -> tuple[str | None, 
         detail = {"by": key, "value": ok[best][key]}
     if best in cv_residuals:
         r, obj, view = cv_residuals[best]
-        s = neighbour_correlation(r, obj, view)
+        s: dict[str, Any] = neighbour_correlation(r, obj, view)
         s["structured"] = bool(s["p_value"] < STRUCTURE_P_VALUE)
         s["test"] = ("correlation of validation residuals between neighbouring corners, against "
                      f"{N_PERMUTATIONS} within-view shufflings")

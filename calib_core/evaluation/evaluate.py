@@ -29,7 +29,7 @@ def evaluate(cal: Calibration, obs: Observations) -> dict[str, Any]:
         m = data.view_index == k
         views.append({"name": name, "rmse": metrics.rmse(r[m]), "rmse_axis": metrics.rmse_axis(r[m]),
                       "n_points": int(m.sum()), "max_error": float(np.max(np.linalg.norm(r[m], axis=1)))})
-    out = metrics.summary(r, data.image_points, obs.image_size)
+    out: dict[str, Any] = metrics.summary(r, data.image_points, obs.image_size)
     out["max_error"] = float(np.max(np.linalg.norm(r, axis=1)))
     out["views"] = views
     return out

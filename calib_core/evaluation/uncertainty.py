@@ -36,6 +36,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..models import camera
+from ..models.base import CameraModel
 from ..fitting.gram import gram
 from ..fitting.solve import Data, SolveSettings, _assemble
 
@@ -67,13 +68,6 @@ class UncertaintyMap:
                 "covered": self.covered.tolist(), "units": "pixels; -1 where undefined"}
 
 
-def _free(model) -> np.ndarray | None:
-    """The model parameters a fit moves (bool mask), None for all; the solver's
-    own default (``levenberg_marquardt`` asks the model the same way)."""
-    mask = getattr(model, "free_mask", None)
-    return None if mask is None else mask()
-
-
 def _embed(cov: np.ndarray, free: np.ndarray | None, n_params: int, n_extra: int = 0) -> np.ndarray:
     """Covariance over the free model parameters (+ ``n_extra`` pose columns)
     back on every model parameter: held ones get zero rows and columns."""
@@ -85,9 +79,9 @@ def _embed(cov: np.ndarray, free: np.ndarray | None, n_params: int, n_extra: int
     return out
 
 
-def model_covariance(model, poses: np.ndarray, data: Data, sigma: float | None = None):
+def model_covariance(model: CameraModel, poses: np.ndarray, data: Data, sigma: float | None = None):
     """Cov(x̂_m) (n_m, n_m) of the model parameters, poses marginalised; with σ and the dof."""
-    free = _free(model)
+    free = model.free_mask()  # the parameters the fit moved, as the solver asks for them
     r, jac = _assemble(model, poses, data, SolveSettings(free_params=free))
     n_rows, n_views = 2 * data.n_points, data.n_views
     n_m = model.n_params if free is None else int(np.sum(free))
@@ -126,9 +120,9 @@ def _effective_dof(h: np.ndarray, m_data: np.ndarray) -> float:
     return float(np.trace(np.linalg.solve(h, m_data)))
 
 
-def full_covariance(model, poses: np.ndarray, data: Data, sigma: float | None = None):
+def full_covariance(model: CameraModel, poses: np.ndarray, data: Data, sigma: float | None = None):
     """Cov(x̂) over [model | poses] (n, n) by the sandwich formula; with σ and the dof."""
-    free = _free(model)
+    free = model.free_mask()  # the parameters the fit moved, as the solver asks for them
     r, jac = _assemble(model, poses, data, SolveSettings(free_params=free))
     n_rows = 2 * data.n_points
     jd = jac[:n_rows]

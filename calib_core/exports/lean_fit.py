@@ -20,6 +20,7 @@ import numpy as np
 from ..calibration import Calibration
 from ..errors import CalibError, SettingsError
 from ..models import FisheyeModel, OpenCVModel
+from ..models.base import ParametricModel
 from ..fitting.solve import Data, SolveSettings, levenberg_marquardt
 
 LEAN_MODELS: dict[str, tuple[str, int]] = {
@@ -52,6 +53,14 @@ class LeanFit:
     error_map: np.ndarray
     exact: bool = False  # the calibration already was this model: nothing fitted
 
+    @property
+    def model(self) -> ParametricModel:
+        """The lean model itself, OpenCV's or Kannala–Brandt's: what exporters write."""
+        model = self.calibration.model
+        if not isinstance(model, ParametricModel):  # fit_lean only ever makes parametric ones
+            raise TypeError(f"a lean fit holds a parametric model, not {model.kind!r}")
+        return model
+
     def summary(self) -> dict[str, Any]:
         return {"model": self.name, "fit_rms_px": self.rms, "fit_max_px": self.max, "fit_p99_px": self.p99,
                 "n_samples": self.n_samples, "exact": self.exact}
@@ -61,11 +70,10 @@ def parametric_part(cal: Calibration) -> Calibration | None:
     """The calibration as a parametric one, exactly, or None: itself if its model
     is ``opencv``/``fisheye``, its core if it is a hybrid whose field is held at
     zero (the B-spline method's choice on a lens a textbook model fits)."""
-    if cal.model.kind in ("opencv", "fisheye"):
-        return cal
-    if cal.model.kind == "hybrid" and cal.model.field_held:
-        return dataclasses.replace(cal, model=cal.model.core)
-    return None
+    parametric = cal.model.exact_parametric()
+    if parametric is None:
+        return None
+    return cal if parametric is cal.model else dataclasses.replace(cal, model=parametric)
 
 
 def exact_name(cal: Calibration) -> str | None:

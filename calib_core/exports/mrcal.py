@@ -25,7 +25,7 @@ def cameramodel(fit: LeanFit) -> str:
     """The ``.cameramodel`` text of a lean fit mrcal can represent (``MRCAL_MODELS``)."""
     if fit.name not in MRCAL_MODELS:
         raise SettingsError(f"mrcal has no {fit.name} lens model; use one of {sorted(MRCAL_MODELS)}")
-    m = fit.calibration.model
+    m = fit.model
     values = np.concatenate([m.intrinsics[:4], np.asarray(m.coefficients, dtype=np.float64)])
     w, h = fit.calibration.image_size
     nums = ", ".join(f"{float(x):.17g}" for x in values)

@@ -32,7 +32,7 @@ def ros_yaml(fit: LeanFit, camera_name: str = "freecal") -> str:
     K = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
     P = np.hstack([rectified_camera(cal, alpha=0.0).matrix, np.zeros((3, 1))])
     w, h = cal.image_size
-    coeffs = np.asarray(cal.model.coefficients, dtype=np.float64).reshape(1, -1)
+    coeffs = np.asarray(fit.model.coefficients, dtype=np.float64).reshape(1, -1)
     return (f"# freecal export: {fit.name} fitted to the calibration, fit error rms {fit.rms:.4g} px, "
             f"max {fit.max:.4g} px\n"
             f"image_width: {w}\nimage_height: {h}\ncamera_name: {camera_name}\n"

@@ -60,8 +60,9 @@ class ModelChoice:
     def within_noise(self, k: int) -> bool:
         return bool(self.mse(k) - self.mse(self.best) <= self.excess_se[k])
 
-    def _as_rmse(self, excess: float) -> float:
-        """An excess in mean squared error, as the rmse per axis it adds to the lowest's."""
+    def _as_rmse(self, excess: float) -> float | None:
+        """An excess in mean squared error, as the rmse per axis it adds to the
+        lowest's; None (JSON null) when the excess is not finite."""
         best = self.mse(self.best)
         return float(np.sqrt((best + excess) / 2) - np.sqrt(best / 2)) if np.isfinite(excess) else None
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from ..models.base import CameraModel
 from .gram import gram
 from .solve import Data, SolveSettings, residuals_and_jacobian
 
@@ -33,7 +34,7 @@ class ViewErrors:
     steps: np.ndarray
 
 
-def linearised_view_errors(model, poses: np.ndarray, data: Data, scored: np.ndarray | None = None,
+def linearised_view_errors(model: CameraModel, poses: np.ndarray, data: Data, scored: np.ndarray | None = None,
                            held_steps: np.ndarray | None = None) -> ViewErrors:
     """Each view's squared residuals over its ``scored`` points (bool mask;
     default all) when it is left out of the fit, in closed form: one
@@ -59,8 +60,10 @@ def linearised_view_errors(model, poses: np.ndarray, data: Data, scored: np.ndar
     Without it a two-stage model is scored with the left-out view still
     inside its first stage, which flatters it on small sets."""
     free = model.free_mask()
-    held = held_steps is not None and free is not None and not free.all()
-    if held:
+    # The held parameters' move per view, when the model holds any (else they need no answer).
+    held_moves = held_steps if free is not None and not free.all() else None
+    jc = None  # the Jacobian's held columns
+    if held_moves is not None and free is not None:
         r, full = residuals_and_jacobian(model, poses, data, SolveSettings(free_params=np.ones(model.n_params, bool)))
         keep = np.concatenate([np.flatnonzero(free), model.n_params + np.arange(6 * data.n_views)])
         jac, jc = full[:, keep].tocsr(), full[:, np.flatnonzero(~free)].tocsr()
@@ -72,7 +75,7 @@ def linearised_view_errors(model, poses: np.ndarray, data: Data, scored: np.ndar
     rows = np.column_stack([2 * order, 2 * order + 1]).ravel()  # the points' rows, view by view
     by_view = jac[rows].tocsr()
     pose_block = by_view[:, n_model:].toarray()
-    held_block = jc[rows].toarray() if held else None
+    held_block = None if jc is None else jc[rows].toarray()
     r_view = r[rows]
     weight = np.repeat(np.ones(data.n_points, dtype=bool) if scored is None else scored, 2)[rows]
     bounds = np.concatenate([[0], np.cumsum(2 * np.bincount(data.view_index, minlength=data.n_views))])
@@ -86,24 +89,25 @@ def linearised_view_errors(model, poses: np.ndarray, data: Data, scored: np.ndar
         nmv = a.T @ b
         coupling = nmv @ np.linalg.solve(nvv, nmv.T)
         s -= coupling
-        c = t = None
-        if held:
+        held_part = None  # C_v, T_v and δc of the view
+        if held_block is not None and held_moves is not None:
             c = held_block[span]
             t = a.T @ c - nmv @ np.linalg.solve(nvv, b.T @ c)
             cross = cross + t
-        parts.append((span, a, b, nvv, a.T @ a - coupling, c, t))
+            held_part = (c, t, held_moves[v])
+        parts.append((span, a, b, nvv, a.T @ a - coupling, held_part))
     errors = np.zeros(data.n_views)
     steps = np.zeros((data.n_views, n_model))
     ridge = 1e-12 * np.trace(s) / max(n_model, 1) * np.eye(n_model)
-    for v, (span, a, b, nvv, share, c, t) in enumerate(parts):
+    for v, (span, a, b, nvv, share, held_part) in enumerate(parts):
         rv = r_view[span]
         rhs = a.T @ rv
-        if held:
-            rhs -= (cross - t) @ held_steps[v]
+        if held_part is not None:
+            rhs -= (cross - held_part[1]) @ held_part[2]
         steps[v] = scipy.linalg.solve(s - share + ridge, rhs, assume_a="pos", check_finite=False)
         e = rv + a @ steps[v]
-        if held:
-            e += c @ held_steps[v]
+        if held_part is not None:
+            e += held_part[0] @ held_part[2]
         e -= b @ np.linalg.solve(nvv, b.T @ e)
         errors[v] = float(np.sum(e[weight[span]] ** 2))
     return ViewErrors(errors, steps)

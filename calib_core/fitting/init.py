@@ -23,6 +23,7 @@ from scipy.spatial.transform import Rotation
 
 from ..models import camera
 from ..errors import DataError
+from ..models.base import CameraModel
 from ..models.fisheye import FisheyeModel
 from .solve import Data, SolveSettings, levenberg_marquardt, spread_views
 
@@ -82,7 +83,7 @@ def _onto_axis(directions: np.ndarray) -> np.ndarray:
     return Rotation.from_rotvec(axis / np.maximum(sine, 1e-12) * angle).as_matrix()
 
 
-def poses_from_rays(model: FisheyeModel, data: Data) -> np.ndarray | None:
+def poses_from_rays(model: CameraModel, data: Data) -> np.ndarray | None:
     """A pose per view from the homography between the board plane and the
     model's rays of the observed corners; None if some view cannot be posed.
 
@@ -135,11 +136,11 @@ def _subsample(data: Data, max_views: int, per_view: int, rng: np.random.Generat
     (spread over the set): enough to score and shape a camera, and the cost
     no longer grows with the number of views."""
     data = spread_views(data, max_views)
-    keep = []
+    per_view_picks = []
     for k in range(data.n_views):
         idx = np.flatnonzero(data.view_index == k)
-        keep.append(idx if len(idx) <= per_view else np.sort(rng.choice(idx, per_view, replace=False)))
-    keep = np.concatenate(keep)
+        per_view_picks.append(idx if len(idx) <= per_view else np.sort(rng.choice(idx, per_view, replace=False)))
+    keep = np.concatenate(per_view_picks)
     return Data(data.object_points[keep], data.image_points[keep], data.view_index[keep], data.n_views)
 
 

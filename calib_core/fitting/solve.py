@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Generic, TypeVar
 
 import numpy as np
 import scipy.linalg
@@ -20,7 +20,13 @@ import scipy.sparse as sp
 import scipy.sparse.linalg
 
 from ..models import camera
+from ..models.base import CameraModel
 from .gram import gram
+
+# The model a solve moves: its result holds the type it was started from.
+ModelT = TypeVar("ModelT", bound=CameraModel)
+# A result of a more specific model is a result of a camera model: results are read, not changed.
+ModelT_co = TypeVar("ModelT_co", bound=CameraModel, covariant=True)
 
 
 class Cancelled(Exception):
@@ -62,10 +68,10 @@ def spread_views(data: Data, max_views: int) -> Data:
 
 
 @dataclass
-class SolveResult:
+class SolveResult(Generic[ModelT_co]):
     """Like ``scipy.optimize.least_squares``' result, for a model and poses."""
 
-    model: object
+    model: ModelT_co
     poses: np.ndarray  # (V, 6)
     cost: float  # ½ Σ r², prior rows included
     residuals: np.ndarray  # (N, 2) projection minus observation, pixels
@@ -119,13 +125,13 @@ MAX_ACCELERATION = 0.75
 MAX_REACH = 1.75
 
 
-def residuals(model, poses: np.ndarray, data: Data) -> np.ndarray:
+def residuals(model: CameraModel, poses: np.ndarray, data: Data) -> np.ndarray:
     """Projection minus observation, (N, 2) pixels."""
     pc = camera.transform(poses, data.view_index, data.object_points)
     return model.project(pc) - data.image_points
 
 
-def _assemble(model, poses: np.ndarray, data: Data, settings: SolveSettings):
+def _assemble(model: CameraModel, poses: np.ndarray, data: Data, settings: SolveSettings):
     """Residual vector and CSR Jacobian over [free model params | poses]."""
     pc = camera.transform(poses, data.view_index, data.object_points)
     uv, d_pc, cols, vals = model.project(pc, jacobian=True)
@@ -194,7 +200,7 @@ def _free_columns(settings: SolveSettings, n_views: int) -> np.ndarray:
     return np.flatnonzero(keep)
 
 
-def _cost(model, poses, data, settings) -> float:
+def _cost(model: CameraModel, poses: np.ndarray, data: Data, settings: SolveSettings) -> float:
     r = residuals(model, poses, data)
     total = float(np.sum(r * r))
     if not settings.fix_model:
@@ -204,7 +210,7 @@ def _cost(model, poses, data, settings) -> float:
     return 0.5 * total if np.isfinite(total) else np.inf
 
 
-def _apply(model, poses, delta, settings):
+def _apply(model: ModelT, poses: np.ndarray, delta: np.ndarray, settings: SolveSettings) -> tuple[ModelT, np.ndarray]:
     if settings.free_params is not None and not settings.fix_model:
         full = np.zeros(model.n_params + (0 if settings.fix_poses else poses.size))
         full[_free_columns(settings, len(poses))] = delta
@@ -252,7 +258,7 @@ def _factorise(jtj, mu: float) -> Callable[[np.ndarray], np.ndarray]:
     return scipy.sparse.linalg.factorized((jtj + sp.diags(d)).tocsc())
 
 
-def _acceleration(model, poses, data: Data, settings: SolveSettings, r: np.ndarray, jac: sp.csr_matrix, jtj,
+def _acceleration(model: CameraModel, poses: np.ndarray, data: Data, settings: SolveSettings, r: np.ndarray, jac: sp.csr_matrix, jtj,
                   v: np.ndarray, solve: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
     """The geodesic acceleration a of the Gauss-Newton step v (Transtrum &
     Sethna 2012): a = −(JᵀJ)⁻¹ Jᵀ r_vv, with r_vv the residuals' second
@@ -275,12 +281,12 @@ def _acceleration(model, poses, data: Data, settings: SolveSettings, r: np.ndarr
 
 
 def levenberg_marquardt(
-    model,
+    model: ModelT,
     poses: np.ndarray,
     data: Data,
     settings: SolveSettings | None = None,
     callback: Callable[[int, float], None] | None = None,
-) -> SolveResult:
+) -> SolveResult[ModelT]:
     """Minimise ½ Σ‖π(model, pose_k, P_j) − p_kj‖² + ½‖prior‖² over model and poses.
 
     ``callback(iteration, cost)`` is called after every accepted step; it may
@@ -326,13 +332,16 @@ def levenberg_marquardt(
     r, jac = _assemble(model, poses, data, settings)
     jtj, g = _normal_equations(jac, r)
     check_step = False  # is the next damped step also the convergence test?
-    trial, halvings = None, 0  # (step, acceleration, length) to try before the next damped one; times halved
+    # The Gauss-Newton step, its acceleration and the length to try them at
+    # before the next damped step; and how often that trial was halved.
+    trial: tuple[np.ndarray, np.ndarray, float] | None = None
+    halvings = 0
     reach = 1.0  # the length of the next trial, as a multiple of the Gauss-Newton step
     gn_skip, gn_backoff = 0, 1  # new points to pass before the next trial
     converged = "converged", f"a Gauss-Newton step would gain less than ftol={settings.ftol:g} of the cost"
     while it < settings.max_iterations:
         gauss_newton = trial is not None
-        if gauss_newton:
+        if trial is not None:
             (v, a, length), trial = trial, None
             step = length * v + 0.5 * length * length * a
             # The quadratic model's gain along the straight part, for any
@@ -404,7 +413,7 @@ def levenberg_marquardt(
     return SolveResult(model, poses, cost, res, it, status, message, jac, history)
 
 
-def _state(model, poses, settings) -> np.ndarray:
+def _state(model: CameraModel, poses: np.ndarray, settings: SolveSettings) -> np.ndarray:
     parts = []
     if not settings.fix_model:
         parts.append(model.params())
@@ -413,7 +422,7 @@ def _state(model, poses, settings) -> np.ndarray:
     return np.concatenate(parts) if parts else np.zeros(0)
 
 
-def residuals_and_jacobian(model, poses: np.ndarray, data: Data, settings: SolveSettings | None = None):
+def residuals_and_jacobian(model: CameraModel, poses: np.ndarray, data: Data, settings: SolveSettings | None = None):
     """(r, J) at this model and poses: the residual vector (2 rows per point,
     x then y, then the model's prior rows) and its CSR Jacobian over
     [free model parameters | poses], as the solver sees them."""

@@ -95,11 +95,14 @@ def _fit_spec(spec: Spec, data: Data, image_size, cores: dict[str, Fit | None], 
               **field_settings) -> Fit:
     """One candidate fitted to ``data`` (``cores``: its core fitted alone, if
     done; ``field_settings``: the field's, default its own search)."""
-    if spec.field is None:
-        return cores.get(spec.core) or fit_core(data, image_size, spec.core, progress)
-    s = BSplineSettings(core=spec.field, **field_settings)
-    s.validate()
-    return fit_field(data, image_size, s, spec.field, progress, cores.get(spec.core))
+    core_fit = None if spec.core is None else cores.get(spec.core)
+    if spec.field is not None:
+        s = BSplineSettings(core=spec.field, **field_settings)
+        s.validate()
+        return fit_field(data, image_size, s, spec.field, progress, core_fit)
+    if spec.core is None:
+        raise ValueError(f"candidate {spec.name!r} has neither a core nor a field")
+    return core_fit or fit_core(data, image_size, spec.core, progress)
 
 
 def _fit_candidates(specs, sample: Data, image_size, progress: Progress):

@@ -26,12 +26,14 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass
+from typing import Any, Callable
 
 import numpy as np
 import scipy.sparse as sp
 
 from .. import ranges
 from ..fitting import knots, metrics
+from ..fitting.knots import KnotSettings
 from ..fitting.choice import Candidate, choose
 from ..fitting.crossval import linearised_view_errors
 from ..models import camera
@@ -40,6 +42,7 @@ from ..errors import DataError, SettingsError
 from ..fitting.init import initialise
 from ..fitting.metrics import design_diagnostics
 from ..models.bspline import GAUGE_WEIGHT, BSplineModel, gauge_rows
+from ..models.base import CameraModel
 from ..models.hybrid import HybridModel
 from ..fitting.smoothing import LAMBDA_GRID, CVCurve, cv_curve, groups_of
 from ..fitting.solve import Data, SolveSettings, levenberg_marquardt, residuals
@@ -112,14 +115,32 @@ class BSplineSettings:
             except (TypeError, ValueError, IndexError):
                 raise SettingsError(f"intervals must be 'auto', N or (N, M), each from 1 to {knots.MAX_INTERVALS}, "
                                     f"got {self.intervals!r}") from None
-        self.knot_settings((10, 10) if self.intervals == AUTO else self.intervals).validate()
+        self.knot_settings(self.fixed_intervals() or (10, 10)).validate()
 
-    def knot_settings(self, intervals: tuple[int, int], bandwidth_factor: float | None = None) -> knots.KnotSettings:
+    # ---- the settings a fit uses, "auto" resolved to None -------------------------
+    def fixed_intervals(self) -> tuple[int, int] | None:
+        """The knot intervals (u, v) given, or None when validation chooses them."""
+        if isinstance(self.intervals, str):
+            return None
+        if isinstance(self.intervals, int):
+            return (self.intervals, self.intervals)
+        return (self.intervals[0], self.intervals[1])
+
+    def fixed_bandwidth_factor(self) -> float | None:
+        """The bandwidth factor given, or None when validation chooses it."""
+        return None if isinstance(self.bandwidth_factor, str) else self.bandwidth_factor
+
+    def fixed_lambda_smooth(self) -> float | None:
+        """The smoothing weight given, or None when validation chooses it."""
+        return None if isinstance(self.lambda_smooth, str) else float(self.lambda_smooth)
+
+    def knot_settings(self, intervals: tuple[int, int], bandwidth_factor: float | None = None) -> KnotSettings:
         """The knot placement's settings; ``bandwidth_factor`` overrides the
         setting (with "auto" and no override: the first candidate)."""
         if bandwidth_factor is None:
-            bandwidth_factor = AUTO_BANDWIDTH_FACTORS[0] if self.bandwidth_factor == AUTO else self.bandwidth_factor
-        return knots.KnotSettings(
+            fixed = self.fixed_bandwidth_factor()
+            bandwidth_factor = AUTO_BANDWIDTH_FACTORS[0] if fixed is None else fixed
+        return KnotSettings(
             strategy=self.knots, bandwidth=self.bandwidth, bandwidth_factor=bandwidth_factor,
             window_ratio=self.window_ratio, max_intervals=self.max_intervals, min_support=self.min_support,
             intervals=intervals, interior=self.interior_knots,
@@ -138,9 +159,9 @@ class FieldProblem:
     domain: tuple[float, float, float, float]
     footprint: np.ndarray  # (M, 2) the image border in the field's coordinates
     gauge_point: tuple[float, float]
-    prior_control: callable  # field → (n_u, n_v, 2) control values the regulariser pulls towards
-    samples: callable
-    make: callable
+    prior_control: Callable[[BSplineField], np.ndarray]  # (n_u, n_v, 2) control values the regulariser pulls towards
+    samples: Callable[[CameraModel, np.ndarray, Data], tuple[np.ndarray, np.ndarray, np.ndarray]]
+    make: Callable[[BSplineField, float, CameraModel], CameraModel]
 
 
 # ---- the paper's model: a field on ideal pixels ----------------------------------
@@ -207,7 +228,8 @@ def prior_field(init_model, intrinsics: np.ndarray, field: BSplineField, base: s
 
 def ideal_field_problem(init, data: Data, image_size, s: BSplineSettings):
     intrinsics = np.array([*init.model.intrinsics[:4], 0.0])
-    probe = BSplineModel(intrinsics, BSplineField.zeros(clamped_knots([0, 1]), clamped_knots([0, 1])), s.base)
+    unit = clamped_knots(np.array([0.0, 1.0]))  # a one-cell field: the probe only needs the base projection
+    probe = BSplineModel(intrinsics, BSplineField.zeros(unit, unit), s.base)
     ideal, ok = ideal_samples(probe, init.poses, data, s.base)
     if ok.sum() < 0.5 * len(ok):
         raise DataError(
@@ -324,11 +346,15 @@ def _choose_smoothing(problem: FieldProblem, samples, response, weights, views, 
     STALE_GRIDS in a row have not predicted clearly better than the best so
     far (the rule would not take them), and those the time budget leaves out
     stop too; both enter the curve as skipped."""
-    counts = [(m, m) for m in AUTO_INTERVALS if m <= s.max_intervals] if s.intervals == AUTO else [s.intervals]
-    factors = AUTO_BANDWIDTH_FACTORS if s.bandwidth_factor == AUTO else [s.bandwidth_factor]
-    lambdas = LAMBDA_GRID if s.lambda_smooth == AUTO else np.array([float(s.lambda_smooth)])
+    fixed_intervals, fixed_factor, fixed_lambda = s.fixed_intervals(), s.fixed_bandwidth_factor(), s.fixed_lambda_smooth()
+    counts = [(m, m) for m in AUTO_INTERVALS if m <= s.max_intervals] if fixed_intervals is None else [fixed_intervals]
+    factors = list(AUTO_BANDWIDTH_FACTORS) if fixed_factor is None else [fixed_factor]
+    lambdas = LAMBDA_GRID if fixed_lambda is None else np.array([fixed_lambda])
     started = time.perf_counter()
-    curve, options, scored = [], [], {}
+    curve: list[dict[str, Any]] = []
+    # (total intervals, intervals, bandwidth factor, λ, per-unit SSE, units, breaks) of each grid scored
+    options: list[tuple[int, tuple[int, int], float, float, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]] = []
+    scored: dict[tuple[bytes, bytes], tuple[CVCurve, float, np.ndarray | None, np.ndarray]] = {}
     jointly = joint is not None and len(counts) * len(factors) > 1  # grids to compare
     for factor in factors:
         stale = 0  # finer grids in a row that predicted no better than the best so far
@@ -451,8 +477,9 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
     weights = sample_weights(samples, response, s)
     first_samples = (samples, response, weights)
     auto = AUTO in (s.intervals, s.bandwidth_factor, s.lambda_smooth)
-    m = (10, 10) if s.intervals == AUTO else s.intervals
-    lam = 1.0 if s.lambda_smooth == AUTO else float(s.lambda_smooth)
+    m = s.fixed_intervals() or (10, 10)
+    lam = s.fixed_lambda_smooth()
+    lam = 1.0 if lam is None else lam
     factor = s.knot_settings(m).bandwidth_factor
     breaks = knots.breaks_for(samples, weights, problem.domain, s.knot_settings(m), problem.footprint)
     progress("control points", 0.15)

@@ -3,12 +3,12 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Generic
 
 import numpy as np
 
 from ..errors import SettingsError
-from ..fitting.solve import SolveResult, SolveSettings
+from ..fitting.solve import Data, ModelT_co, SolveResult, SolveSettings
 
 Progress = Callable[[str, float], None]
 
@@ -23,17 +23,17 @@ def scaled(progress: Progress, lo: float, hi: float) -> Progress:
 
 
 @dataclass
-class Fit:
+class Fit(Generic[ModelT_co]):
     """A fitted model and poses, the points it could not use, and what to record."""
 
-    result: SolveResult
+    result: SolveResult[ModelT_co]
     excluded: np.ndarray  # (N,) bool: points the model cannot represent (not fitted)
     excluded_reason: str = ""
     settings: dict[str, Any] = field(default_factory=dict)
     diagnostics: dict[str, Any] = field(default_factory=dict)
     # Refit on a subset of the points (after outlier rejection), for methods
     # whose model is not all refined by LM (residual fields); None: plain LM.
-    refit: Callable[[Any, SolveResult], SolveResult] | None = None
+    refit: Callable[[Data, SolveResult[ModelT_co]], SolveResult[ModelT_co]] | None = None
     # How plain LM refits this model (None: the method's max_iterations and
     # ftol, damped steps). A field's refit wants its final fit's Gauss-Newton
     # trials: damped steps crawl along its flat valley (BabelCalib's outlier

@@ -15,6 +15,7 @@ from .. import ranges
 from ..errors import DataError
 from ..fitting.init import initialise
 from ..fitting.solve import Data, SolveSettings, levenberg_marquardt
+from ..models.fisheye import FisheyeModel
 from .common import Fit, Progress
 
 
@@ -29,7 +30,7 @@ class FisheyeSettings:
         ranges.iterations_and_tolerance(self.max_iterations, self.ftol)
 
 
-def fit_fisheye(data: Data, image_size, s: FisheyeSettings, progress: Progress) -> Fit:
+def fit_fisheye(data: Data, image_size: tuple[int, int], s: FisheyeSettings, progress: Progress) -> Fit[FisheyeModel]:
     progress("initialise", 0.0)
     init = initialise(data, image_size, n_coefficients=s.n_coefficients)
     progress("levenberg-marquardt", 0.3)

@@ -18,7 +18,7 @@ from ..models import camera
 from ..errors import DataError, SettingsError
 from ..fitting.init import initialise
 from ..models.opencv import ALLOWED_COUNTS, OpenCVModel
-from ..fitting.solve import Data, SolveSettings, levenberg_marquardt
+from ..fitting.solve import Data, SolveResult, SolveSettings, levenberg_marquardt
 from .common import Fit, Progress
 
 # A pinhole model maps a ray θ off axis to tan θ: past this angle it cannot
@@ -77,7 +77,7 @@ def pinhole_visible(poses: np.ndarray, data: Data) -> np.ndarray:
 RACE_ITERATIONS = 25
 
 
-def best_of(starts, data: Data, settings: SolveSettings):
+def best_of(starts: list[tuple[OpenCVModel, np.ndarray]], data: Data, settings: SolveSettings) -> SolveResult[OpenCVModel]:
     """The best converged fit from several (model, poses) starts. Each runs
     RACE_ITERATIONS first; only the lowest then runs to convergence. A start
     headed for a worse minimum shows it early (measured on the rational model:
@@ -94,7 +94,8 @@ def best_of(starts, data: Data, settings: SolveSettings):
     return leader
 
 
-def fit_opencv(data: Data, image_size, s: OpenCVSettings, progress: Progress, five: Fit | None = None) -> Fit:
+def fit_opencv(data: Data, image_size: tuple[int, int], s: OpenCVSettings, progress: Progress,
+               five: Fit[OpenCVModel] | None = None) -> Fit[OpenCVModel]:
     """OpenCV's model with ``s.n_coefficients``, converged from several starts;
     ``five``: the 5-coefficient fit of the same corners, if already made (a
     start of the larger models)."""

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -26,7 +26,10 @@ from ..errors import DataError
 from ..models import camera
 from ..models.mls import MLSField, MLSModel
 from ..models.tps import TPSField, TPSModel, affine_basis, kernel_matrix
-from ..fitting.solve import Data, SolveResult, SolveSettings, levenberg_marquardt, residuals
+from ..fitting.solve import Data, ModelT, SolveResult, SolveSettings, levenberg_marquardt, residuals
+from ..models.base import CameraModel
+from ..models.opencv import OpenCVModel
+from ..models.residual_field import Field, ResidualFieldModel
 from .common import Fit, Progress
 from .opencv import OpenCVSettings, fit_opencv
 
@@ -112,7 +115,7 @@ def fit_mls_fields(samples, offsets, diagonal: float, supports: list[float], rid
 
 
 def cross_validate(view_index: np.ndarray, n_views: int, folds: int, samples, offsets,
-                   build: Callable[[np.ndarray, np.ndarray], list]) -> np.ndarray:
+                   build: Callable[[np.ndarray, np.ndarray], Sequence[Field]]) -> np.ndarray:
     """Validation rmse (per point, pixels) of each candidate field, k-fold over views: (n_candidates,)."""
     k = min(folds, n_views)
     fold_of_view = np.arange(n_views) % k
@@ -131,42 +134,47 @@ def cross_validate(view_index: np.ndarray, n_views: int, folds: int, samples, of
 
 
 # ---- the methods --------------------------------------------------------------------
-def _zhang(data: Data, image_size, s, progress: Progress) -> Fit:
+def _zhang(data: Data, image_size: tuple[int, int], s: TPSSettings | MLSSettings, progress: Progress) -> Fit[OpenCVModel]:
     return fit_opencv(data, image_size, OpenCVSettings(s.zhang_coefficients, s.max_iterations, s.ftol), progress)
 
 
-def _fit_field(kind: str, res: SolveResult, data: Data, image_size, s, progress: Progress | None = None):
-    """The residual field on top of the parametric ``res`` on ``data``; the model
-    and the cross-validation table."""
-    core = res.model.parametric if hasattr(res.model, "parametric") else res.model
+def _fit_field(res: SolveResult[OpenCVModel], data: Data, image_size: tuple[int, int],
+               s: TPSSettings | MLSSettings) -> tuple[ResidualFieldModel, float, list[dict[str, float]]]:
+    """The residual field on top of the parametric ``res`` on ``data``; the model,
+    the chosen smoothing (tps) or support (mls), and the cross-validation table."""
+    core = res.model
     pc = camera.transform(res.poses, data.view_index, data.object_points)
     samples = core.project(pc)
     offsets = data.image_points - samples
     diagonal = float(np.hypot(*image_size))
-    if kind == "tps":
+    build: Callable[[np.ndarray, np.ndarray], Sequence[TPSField | MLSField]]
+    if isinstance(s, TPSSettings):
         grid = list(s.smoothing)
+        max_centers = s.max_centers
 
-        def build(sm, of):
-            return fit_tps_field(sm, of, diagonal, grid, s.max_centers)
+        def build(sm: np.ndarray, of: np.ndarray) -> list[TPSField]:
+            return fit_tps_field(sm, of, diagonal, grid, max_centers)
     else:
         grid = list(s.support)
+        ridge = s.ridge
 
-        def build(sm, of):
-            return fit_mls_fields(sm, of, diagonal, grid, s.ridge)
+        def build(sm: np.ndarray, of: np.ndarray) -> list[MLSField]:
+            return fit_mls_fields(sm, of, diagonal, grid, ridge)
     scores = cross_validate(data.view_index, data.n_views, s.folds, samples, offsets, build) if len(grid) > 1 else np.zeros(1)
     best = int(np.argmin(scores))
     chosen = build(samples, offsets)[best] if len(grid) > 1 else build(samples, offsets)[0]
-    model = (TPSModel if kind == "tps" else MLSModel)(core, chosen)
+    model = TPSModel(core, chosen) if isinstance(chosen, TPSField) else MLSModel(core, chosen)
     table = [{"value": float(v), "cv_rmse": float(e)} for v, e in zip(grid, scores)]
     return model, grid[best], table
 
 
-def _fit_residual(kind: str, data: Data, image_size, s, progress: Progress) -> Fit:
+def _fit_residual(kind: str, data: Data, image_size: tuple[int, int], s: TPSSettings | MLSSettings,
+                  progress: Progress) -> Fit[ResidualFieldModel]:
     base = _zhang(data, image_size, s, progress)
     progress(f"{kind} field", 0.6)
     used = ~base.excluded
     sub = Data(data.object_points[used], data.image_points[used], data.view_index[used], data.n_views)
-    model, chosen, table = _fit_field(kind, base.result, sub, image_size, s)
+    model, chosen, table = _fit_field(base.result, sub, image_size, s)
     res = _with_model(base.result, model, sub)
     key = "smoothing" if kind == "tps" else "support"
     settings = dataclasses.asdict(s)
@@ -174,26 +182,27 @@ def _fit_residual(kind: str, data: Data, image_size, s, progress: Progress) -> F
     diagnostics = dict(base.diagnostics)
     diagnostics["grid_search"] = {"parameter": key, "folds": s.folds, "by": "k-fold over views", "table": table}
 
-    def refit(sub2: Data, current: SolveResult) -> SolveResult:
+    def refit(sub2: Data, current: SolveResult[ResidualFieldModel]) -> SolveResult[ResidualFieldModel]:
         # Outliers removed: refit Zhang on the rest, then the field with the value already chosen.
         core_res = levenberg_marquardt(current.model.parametric, current.poses, sub2, SolveSettings(s.max_iterations, s.ftol))
-        one = dataclasses.replace(s, **{key: [chosen]})
-        m, _, _ = _fit_field(kind, core_res, sub2, image_size, one)
+        one = (dataclasses.replace(s, smoothing=[chosen]) if isinstance(s, TPSSettings)
+               else dataclasses.replace(s, support=[chosen]))
+        m, _, _ = _fit_field(core_res, sub2, image_size, one)
         return _with_model(core_res, m, sub2)
 
     return Fit(res, base.excluded, base.excluded_reason, settings, diagnostics, refit)
 
 
-def _with_model(res: SolveResult, model, data: Data) -> SolveResult:
+def _with_model(res: SolveResult[CameraModel], model: ModelT, data: Data) -> SolveResult[ModelT]:
     r = residuals(model, res.poses, data)
     return SolveResult(model, res.poses, 0.5 * float(np.sum(r * r)), r, res.iterations, res.status, res.message)
 
 
-def fit_tps(data: Data, image_size, s: TPSSettings, progress: Progress) -> Fit:
+def fit_tps(data: Data, image_size: tuple[int, int], s: TPSSettings, progress: Progress) -> Fit[ResidualFieldModel]:
     return _fit_residual("tps", data, image_size, s, progress)
 
 
-def fit_mls(data: Data, image_size, s: MLSSettings, progress: Progress) -> Fit:
+def fit_mls(data: Data, image_size: tuple[int, int], s: MLSSettings, progress: Progress) -> Fit[ResidualFieldModel]:
     return _fit_residual("mls", data, image_size, s, progress)
 
 

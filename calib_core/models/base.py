@@ -11,11 +11,16 @@ row 1 for v. Entries may repeat a column with value 0 (padding).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Self
 
 import numpy as np
+import scipy.sparse as sp
 
 from . import camera
+from .bspline_basis import BSplineField, breaks_of
+
+# Residual rows linear in the parameters and their Jacobian, ``(r, J)``: J (r, n_params).
+Prior = tuple[np.ndarray, sp.csr_matrix]
 
 
 class CameraModel(ABC):
@@ -34,7 +39,7 @@ class CameraModel(ABC):
         """The fitted parameters (n_params,)."""
 
     @abstractmethod
-    def with_params(self, x: np.ndarray) -> "CameraModel":
+    def with_params(self, x: np.ndarray) -> Self:
         """The same model with parameters ``x`` (a new object)."""
 
     @abstractmethod
@@ -42,7 +47,7 @@ class CameraModel(ABC):
         """Pixels (N, 2) of normalised coordinates (N, 2); with ``jacobian`` also
         ∂uv/∂xn (N, 2, 2) and the parameter Jacobian ``cols, vals``."""
 
-    def prior(self):
+    def prior(self) -> Prior | None:
         """Extra residual rows linear in the parameters, ``(r, J)``, or None."""
         return None
 
@@ -62,6 +67,45 @@ class CameraModel(ABC):
     @abstractmethod
     def distortion_json(self) -> dict[str, Any]:
         """The ``distortion`` object of formats.md."""
+
+    @classmethod
+    @abstractmethod
+    def from_json(cls, intrinsics: np.ndarray, distortion: dict[str, Any], base: str) -> Self:
+        """The model a calibration's ``intrinsics`` [fx, fy, cx, cy, skew],
+        ``distortion`` object and ``base`` describe (formats.md), or a
+        FormatError naming the field that is wrong. ``restored`` then adds
+        what the calibration's ``settings`` record."""
+
+    def settings_json(self) -> dict[str, Any]:
+        """What the fit of this model chose beyond its ``distortion`` object
+        (regularisers, gauge, held parts), for the calibration's ``settings``:
+        what ``restored`` reads back. Parametric models choose nothing."""
+        return {}
+
+    def base_json(self) -> str:
+        """The ``base`` the calibration JSON records: the format's base for the
+        distortion type, which need not be the one this model computes on
+        (Kannala–Brandt is written on the pinhole base, see ``fisheye.py``)."""
+        return self.base
+
+    # ---- what a model is made of ------------------------------------------------
+    @property
+    def bspline_field(self) -> BSplineField | None:
+        """The B-spline distortion field this model carries (in ideal pixels
+        for ``bspline``, in its core's pixels for ``hybrid``), or None."""
+        return None
+
+    def knot_breaks(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The knot grid of the B-spline field: its interval breaks along u and
+        along v (domain ends included), or None without a field."""
+        field = self.bspline_field
+        return None if field is None else (breaks_of(field.knots_u), breaks_of(field.knots_v))
+
+    def exact_parametric(self) -> ParametricModel | None:
+        """This model as a parametric one that projects identically, or None:
+        what exports to tools that know only OpenCV's and Kannala–Brandt's
+        models can write without a fit."""
+        return None
 
     # ---- shared ---------------------------------------------------------------
     def project(self, pc: np.ndarray, jacobian: bool = False):
@@ -122,7 +166,7 @@ class ParametricModel(CameraModel):
     """A model with parameters ``[fx, fy, cx, cy, coefficients…]``, skew 0
     (OpenCV's and Kannala–Brandt's)."""
 
-    def __init__(self, intrinsics, coefficients):
+    def __init__(self, intrinsics: Any, coefficients: Any):
         self.intrinsics = np.asarray(intrinsics, dtype=np.float64).copy()
         self.intrinsics[4] = 0.0
         self.coefficients = np.asarray(coefficients, dtype=np.float64).copy()
@@ -134,8 +178,11 @@ class ParametricModel(CameraModel):
     def params(self) -> np.ndarray:
         return np.concatenate([self.intrinsics[:4], self.coefficients])
 
-    def with_params(self, x: np.ndarray) -> "ParametricModel":
+    def with_params(self, x: np.ndarray) -> Self:
         return type(self)(np.append(x[:4], 0.0), x[4:])
+
+    def exact_parametric(self) -> ParametricModel:
+        return self
 
     @abstractmethod
     def distort_normalised(self, xn: np.ndarray, jacobian: bool = False):

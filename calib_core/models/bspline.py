@@ -28,14 +28,15 @@ the lens's own shape instead of flattening out.
 """
 from __future__ import annotations
 
-from typing import Any
+import copy
+from typing import Any, Self
 
 import numpy as np
 import scipy.sparse as sp
 
 from .bspline_basis import BSplineField
 from ..errors import FormatError
-from .base import CameraModel, intrinsics_jacobian
+from .base import CameraModel, Prior, intrinsics_jacobian
 
 GAUGE_WEIGHT = 1e4  # constraint rows are multiplied by this: violations ~1e-8 px
 
@@ -45,10 +46,11 @@ def gauge_rows(field: BSplineField, point: tuple[float, float]) -> sp.csr_matrix
     over the domain) at ``point``; rows interleave x and y."""
     nc = field.n_controls
     d = field.design(np.array([point]), derivative=True)
+    w_u, w_v = d.derivative_weights()
     u0, u1, v0, v1 = field.domain
     scale = 0.5 * ((u1 - u0) + (v1 - v0))
     rows = []
-    for w in (d.w[0], scale * d.w_u[0], scale * d.w_v[0]):
+    for w in (d.w[0], scale * w_u[0], scale * w_v[0]):
         row = sp.csr_matrix((w, d.cols[0], [0, 16]), shape=(1, nc))
         rows += [sp.hstack([row, sp.csr_matrix((1, nc))]), sp.hstack([sp.csr_matrix((1, nc)), row])]
     return sp.vstack(rows).tocsr()
@@ -71,19 +73,26 @@ def field_prior_rows(field: BSplineField, lambda_reg: float, lambda_smooth: floa
     return sp.vstack(rows).tocsr()
 
 
-def recorded_regularisation(settings: dict[str, Any], defaults: tuple[float, float]):
+def recorded_regularisation(settings: dict[str, Any], defaults: tuple[float, float]
+                            ) -> tuple[float, float, tuple[float, float] | None]:
     """(λ_reg, λ_smooth, gauge point or None) as a calibration's ``settings``
     record them; ``defaults`` where they are missing or not numbers."""
-    def finite(value) -> bool:
-        return isinstance(value, (int, float)) and not isinstance(value, bool) and bool(np.isfinite(value))
+    def number(value: Any) -> float | None:
+        """``value`` as a float if it is a finite JSON number (not a bool), else None."""
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value):
+            return float(value)
+        return None
 
-    def weight(key, default) -> float:
-        value = settings.get(key)
-        return float(value) if finite(value) and value >= 0 else default
+    def weight(key: str, default: float) -> float:
+        value = number(settings.get(key))
+        return value if value is not None and value >= 0 else default
 
     gauge = settings.get("gauge")
-    point = gauge.get("point") if isinstance(gauge, dict) else None
-    point = (float(point[0]), float(point[1])) if isinstance(point, list) and len(point) == 2 and all(map(finite, point)) else None
+    recorded = gauge.get("point") if isinstance(gauge, dict) else None
+    coordinates = [number(c) for c in recorded] if isinstance(recorded, list) and len(recorded) == 2 else []
+    point = None
+    if len(coordinates) == 2 and coordinates[0] is not None and coordinates[1] is not None:
+        point = (coordinates[0], coordinates[1])
     return weight("lambda_reg", defaults[0]), weight("lambda_smooth", defaults[1]), point
 
 
@@ -107,8 +116,7 @@ class BSplineModel(CameraModel):
         self.lambda_smooth = float(lambda_smooth)
         self.gauge_point = None if gauge_point is None else (float(gauge_point[0]), float(gauge_point[1]))
         self.prior_control = prior_control  # (n_u, n_v, 2) or None
-        self._prior_matrix = None
-        self._prior_offset = None
+        self._prior_rows: tuple[sp.csr_matrix, np.ndarray] | None = None  # built on first use, kept by with_params
 
     @property
     def n_params(self) -> int:
@@ -118,11 +126,10 @@ class BSplineModel(CameraModel):
         c = self.field.control
         return np.concatenate([self.intrinsics, c[..., 0].ravel(), c[..., 1].ravel()])
 
-    def with_params(self, x: np.ndarray) -> "BSplineModel":
+    def with_params(self, x: np.ndarray) -> Self:
         nc = self.field.n_controls
         control = np.stack([x[5 : 5 + nc], x[5 + nc :]], axis=-1)
-        new = object.__new__(BSplineModel)
-        new.__dict__.update(self.__dict__)
+        new = copy.copy(self)  # the settings, and the prior rows cached for these knots
         new.intrinsics = np.asarray(x[:5], dtype=np.float64).copy()
         new.field = self.field.with_control(control)
         return new
@@ -147,13 +154,13 @@ class BSplineModel(CameraModel):
         return ideal + offset, d_xn, cols, vals
 
     # ---- prior rows: regularisers and gauge ----------------------------------
-    def prior(self):
-        if self._prior_matrix is None:
-            self._prior_matrix, self._prior_offset = self._build_prior()
-        m = self._prior_matrix
-        return m @ self.params() - self._prior_offset, m
+    def prior(self) -> Prior:
+        if self._prior_rows is None:
+            self._prior_rows = self._build_prior()
+        matrix, offset = self._prior_rows
+        return matrix @ self.params() - offset, matrix
 
-    def _build_prior(self):
+    def _build_prior(self) -> tuple[sp.csr_matrix, np.ndarray]:
         controls = field_prior_rows(self.field, self.lambda_reg, self.lambda_smooth, self.gauge_point)
         offset = np.zeros(controls.shape[0])
         if self.prior_control is not None:
@@ -165,8 +172,9 @@ class BSplineModel(CameraModel):
         matrix = sp.hstack([sp.csr_matrix((controls.shape[0], 5)), controls]).tocsr()
         return matrix, offset
 
-    def gauge_rows(self) -> sp.csr_matrix:
-        return gauge_rows(self.field, self.gauge_point)
+    @property
+    def bspline_field(self) -> BSplineField:
+        return self.field
 
     def restored(self, settings: dict[str, Any]) -> "BSplineModel":
         # P₀ (the initial camera's field) is not recorded: the prior rows, and
@@ -190,7 +198,7 @@ class BSplineModel(CameraModel):
         }
 
     @classmethod
-    def from_json(cls, intrinsics, distortion: dict[str, Any], base: str) -> "BSplineModel":
+    def from_json(cls, intrinsics: np.ndarray, distortion: dict[str, Any], base: str) -> Self:
         if distortion.get("type") != "bspline":
             raise FormatError("distortion.type: expected 'bspline'")
         return cls(intrinsics, BSplineField.from_json(distortion), base=base)

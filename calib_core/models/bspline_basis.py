@@ -84,6 +84,12 @@ class Design:
     w_u: np.ndarray | None = None
     w_v: np.ndarray | None = None
 
+    def derivative_weights(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(w_u, w_v)``, which only a design built with ``derivative`` has."""
+        if self.w_u is None or self.w_v is None:
+            raise ValueError("this design was built without derivatives (design(..., derivative=True))")
+        return self.w_u, self.w_v
+
     def matrix(self, n_controls: int) -> sp.csr_matrix:
         n = len(self.cols)
         return sp.csr_matrix(
@@ -155,7 +161,8 @@ class BSplineField:
     def evaluate(self, uv: np.ndarray):
         """Offsets (N, 2), their Jacobian (N, 2, 2) ``[[Δx_u, Δx_v], [Δy_u, Δy_v]]``, and the design."""
         d = self.design(uv, derivative=True)
-        jac = np.stack([self._combine(d.w_u, d.cols), self._combine(d.w_v, d.cols)], axis=-1)
+        w_u, w_v = d.derivative_weights()
+        jac = np.stack([self._combine(w_u, d.cols), self._combine(w_v, d.cols)], axis=-1)
         return self._combine(d.w, d.cols), jac, d
 
     def _combine(self, weights: np.ndarray, cols: np.ndarray) -> np.ndarray:

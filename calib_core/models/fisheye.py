@@ -8,7 +8,7 @@ Parameters: ``[fx, fy, cx, cy, k1 … kn]`` (skew fixed at 0, as in OpenCV).
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -49,8 +49,11 @@ class FisheyeModel(ParametricModel):
     def distortion_json(self) -> dict[str, Any]:
         return {"type": "fisheye", "coefficients": self.coefficients.tolist()}
 
+    def base_json(self) -> str:
+        return "pinhole"  # the format's form, θ = atan r; the equidistant base is how it is computed
+
     @classmethod
-    def from_json(cls, intrinsics, distortion: dict[str, Any], base: str) -> "FisheyeModel":
+    def from_json(cls, intrinsics: np.ndarray, distortion: dict[str, Any], base: str) -> Self:
         coeffs = distortion.get("coefficients")
         if not isinstance(coeffs, list) or not coeffs:
             raise FormatError("distortion.coefficients: expected a non-empty list [k1, ..., kn]")

@@ -18,35 +18,35 @@ model (``methods/bspline_auto.py``, the model choice).
 """
 from __future__ import annotations
 
-from typing import Any
+import copy
+from typing import Any, Self
 
 import numpy as np
 import scipy.sparse as sp
 
 from .bspline_basis import BSplineField
 from ..errors import FormatError
-from .base import CameraModel, core_inverse_start
+from .base import CameraModel, ParametricModel, Prior, core_inverse_start
 from .bspline import GAUGE_WEIGHT, field_prior_rows, recorded_regularisation
+from .fisheye import FisheyeModel
+from .opencv import OpenCVModel
 
 
 class HybridModel(CameraModel):
     kind = "hybrid"
 
-    def __init__(self, core: CameraModel, field: BSplineField, lambda_reg: float = 1e-3,
+    def __init__(self, core: ParametricModel, field: BSplineField, lambda_reg: float = 1e-3,
                  lambda_smooth: float = 1.0, gauge_point: tuple[float, float] | None = None,
                  field_held: bool = False):
         self.core = core
+        self.intrinsics = core.intrinsics  # the core's own array: with_params keeps them the same
         self.field = field
         self.base = core.base
         self.lambda_reg = float(lambda_reg)
         self.lambda_smooth = float(lambda_smooth)
         self.gauge_point = gauge_point
         self.field_held = bool(field_held)
-        self._prior = None
-
-    @property
-    def intrinsics(self) -> np.ndarray:
-        return self.core.intrinsics
+        self._prior_matrix: sp.csr_matrix | None = None  # built on first use, kept by with_params
 
     @property
     def n_params(self) -> int:
@@ -69,11 +69,11 @@ class HybridModel(CameraModel):
             free[4 : self.core.n_params] = False
         return free
 
-    def with_params(self, x: np.ndarray) -> "HybridModel":
+    def with_params(self, x: np.ndarray) -> Self:
         k, nc = self.core.n_params, self.field.n_controls
-        new = object.__new__(HybridModel)
-        new.__dict__.update(self.__dict__)
+        new = copy.copy(self)  # the settings, and the prior rows cached for these knots
         new.core = self.core.with_params(x[:k])
+        new.intrinsics = new.core.intrinsics
         new.field = self.field.with_control(np.stack([x[k : k + nc], x[k + nc :]], axis=-1))
         return new
 
@@ -104,11 +104,23 @@ class HybridModel(CameraModel):
     def newton_start(self, uv: np.ndarray) -> np.ndarray:
         return core_inverse_start(self, self.core, uv, self.field(uv))
 
-    def prior(self):
-        if self._prior is None:
+    def prior(self) -> Prior:
+        if self._prior_matrix is None:
             rows = field_prior_rows(self.field, self.lambda_reg, self.lambda_smooth, self.gauge_point)
-            self._prior = sp.hstack([sp.csr_matrix((rows.shape[0], self.core.n_params)), rows]).tocsr()
-        return self._prior @ self.params(), self._prior
+            self._prior_matrix = sp.hstack([sp.csr_matrix((rows.shape[0], self.core.n_params)), rows]).tocsr()
+        return self._prior_matrix @ self.params(), self._prior_matrix
+
+    @property
+    def bspline_field(self) -> BSplineField:
+        return self.field
+
+    def exact_parametric(self) -> ParametricModel | None:
+        """The core, when the field is held at zero (the B-spline method's
+        choice on a lens a textbook model fits)."""
+        return self.core if self.field_held else None
+
+    def base_json(self) -> str:
+        return self.core.base_json()
 
     def distortion_json(self) -> dict[str, Any]:
         return {"type": "hybrid", "core": self.core.distortion_json(), "field": self.field.to_json()}
@@ -129,15 +141,14 @@ class HybridModel(CameraModel):
                            settings.get("field_held") is True)
 
     @classmethod
-    def from_json(cls, intrinsics, distortion: dict[str, Any], base: str) -> "HybridModel":
-        from . import MODEL_TYPES  # the core is any parametric type
-
+    def from_json(cls, intrinsics: np.ndarray, distortion: dict[str, Any], base: str) -> Self:
         core_doc, field_doc = distortion.get("core"), distortion.get("field")
         if not isinstance(core_doc, dict) or core_doc.get("type") not in ("opencv", "fisheye"):
             raise FormatError("distortion.core: expected an 'opencv' or 'fisheye' distortion object")
         if not isinstance(field_doc, dict) or field_doc.get("type") != "bspline":
             raise FormatError("distortion.field: expected a 'bspline' distortion object")
-        core = MODEL_TYPES[core_doc["type"]].from_json(intrinsics, core_doc, base)
+        core_type = OpenCVModel if core_doc["type"] == "opencv" else FisheyeModel
+        core = core_type.from_json(intrinsics, core_doc, base)
         return cls(core, BSplineField.from_json(field_doc, "distortion.field"))
 
 

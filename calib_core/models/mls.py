@@ -17,7 +17,7 @@ makes ``f`` fade to 0 (the parametric model alone). Distorted pixel = ``p + f(p)
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 from numba import njit
@@ -159,7 +159,7 @@ class MLSModel(ResidualFieldModel):
     kind = "mls"
 
     @classmethod
-    def from_json(cls, intrinsics, distortion: dict[str, Any], base: str) -> "MLSModel":
+    def from_json(cls, intrinsics: np.ndarray, distortion: dict[str, Any], base: str) -> Self:
         core = cls.parametric_from_json(intrinsics, distortion, base)
         samples = float_array(distortion, "samples", (2,))
         k = len(samples)

@@ -15,7 +15,7 @@ Parameters: ``[fx, fy, cx, cy, coefficients…]``.
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -125,7 +125,7 @@ class OpenCVModel(ParametricModel):
         return {"type": "opencv", "coefficients": self.coefficients.tolist()}
 
     @classmethod
-    def from_json(cls, intrinsics, distortion: dict[str, Any], base: str) -> "OpenCVModel":
+    def from_json(cls, intrinsics: np.ndarray, distortion: dict[str, Any], base: str) -> Self:
         coeffs = distortion.get("coefficients")
         if not isinstance(coeffs, list) or len(coeffs) not in ALLOWED_COUNTS or not all(
             isinstance(c, (int, float)) and not isinstance(c, bool) for c in coeffs

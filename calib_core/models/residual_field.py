@@ -9,7 +9,7 @@ part moves (the field is held), so ``params`` are the parametric model's.
 """
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import Any, Protocol, Self
 
 import numpy as np
 
@@ -41,7 +41,7 @@ class ResidualFieldModel(CameraModel):
     def params(self) -> np.ndarray:
         return self.parametric.params()
 
-    def with_params(self, x: np.ndarray) -> "ResidualFieldModel":
+    def with_params(self, x: np.ndarray) -> Self:
         return type(self)(self.parametric.with_params(x), self.field)
 
     def pixel_of(self, xn: np.ndarray, jacobian: bool = False):
@@ -65,7 +65,7 @@ class ResidualFieldModel(CameraModel):
         return {"type": self.kind, "parametric": self.parametric.distortion_json(), **self.field.to_json()}
 
     @classmethod
-    def parametric_from_json(cls, intrinsics, distortion: dict[str, Any], base: str) -> OpenCVModel:
+    def parametric_from_json(cls, intrinsics: np.ndarray, distortion: dict[str, Any], base: str) -> OpenCVModel:
         core = distortion.get("parametric")
         if not isinstance(core, dict) or core.get("type") != "opencv":
             raise FormatError(f"distortion.parametric: a {cls.kind} model sits on an opencv model; "

@@ -16,7 +16,7 @@ At the parametric pixel ``p = (u, v)``::
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 from numba import njit
@@ -105,7 +105,7 @@ class TPSModel(ResidualFieldModel):
     kind = "tps"
 
     @classmethod
-    def from_json(cls, intrinsics, distortion: dict[str, Any], base: str) -> "TPSModel":
+    def from_json(cls, intrinsics: np.ndarray, distortion: dict[str, Any], base: str) -> Self:
         core = cls.parametric_from_json(intrinsics, distortion, base)
         centers = float_array(distortion, "centers", (2,))
         m = len(centers)

@@ -19,12 +19,12 @@ from . import camera
 from .base import CameraModel, refine_preimage
 
 N_THETA, N_PHI = 160, 192  # ~0.6° × 1.9° polar grid: start within a fraction of a cell
-MAX_THETA = {"pinhole": np.radians(88.0), "equidistant": np.radians(120.0), "stereographic": np.radians(150.0)}
+MAX_THETA: dict[str, float] = {"pinhole": np.radians(88.0), "equidistant": np.radians(120.0), "stereographic": np.radians(150.0)}
 
 
 def principal_samples(model: CameraModel) -> tuple[np.ndarray, np.ndarray]:
     """Normalised coordinates (M, 2) on the principal branch and their pixels (M, 2)."""
-    theta = np.linspace(0.0, MAX_THETA.get(model.base, np.radians(88.0)), N_THETA)
+    theta = np.linspace(0.0, MAX_THETA.get(model.base, MAX_THETA["pinhole"]), N_THETA)
     phi = np.linspace(-np.pi, np.pi, N_PHI, endpoint=False)
     tt, pp = np.meshgrid(theta, phi)  # (N_PHI, N_THETA): one azimuth per row
     rays = np.stack([np.sin(tt) * np.cos(pp), np.sin(tt) * np.sin(pp), np.cos(tt)], axis=-1).reshape(-1, 3)

@@ -154,7 +154,7 @@ def render_view(kind: str, pose: np.ndarray, board: tuple[int, int] = synth.TRAI
                 rng: np.random.Generator | None = None, blur: float = BLUR_SIGMA,
                 noise: float = NOISE_SIGMA) -> np.ndarray:
     """8-bit greyscale image (H, W) of a cols × rows (inner corners) chessboard at ``pose``."""
-    rays, covered = pixel_rays(kind, tuple(image_size))
+    rays, covered = pixel_rays(kind, (image_size[0], image_size[1]))
     b = board_coordinates(rays, np.asarray(pose, dtype=np.float64))  # (H, W, 2)
     b[~covered] = np.nan
     # Local Jacobian of the pixel → board map (central differences = the best affine fit
@@ -207,7 +207,7 @@ def true_corners(kind: str, pose: np.ndarray, board: tuple[int, int] = synth.TRA
     w, h = image_size
     ok &= np.all(np.isfinite(uv), axis=1)
     ok &= (uv[:, 0] >= margin) & (uv[:, 0] <= w - 1 - margin) & (uv[:, 1] >= margin) & (uv[:, 1] <= h - 1 - margin)
-    _, covered = pixel_rays(kind, tuple(image_size))
+    _, covered = pixel_rays(kind, (image_size[0], image_size[1]))
     ok[ok] &= covered[np.rint(uv[ok, 1]).astype(int), np.rint(uv[ok, 0]).astype(int)]
     ids = np.flatnonzero(ok)
     return ids, pts[ids], uv[ids]

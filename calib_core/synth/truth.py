@@ -8,12 +8,13 @@ pixel error itself). It has no parameters and is never fitted.
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
 from .. import synth
 from ..calibration import Calibration
+from ..errors import FormatError
 from ..models.base import CameraModel
 
 STEP = 1e-6  # normalised units: ~3e-4 px at f ≈ 300
@@ -37,7 +38,7 @@ class TruthModel(CameraModel):
     def params(self) -> np.ndarray:
         return np.zeros(0)
 
-    def with_params(self, x: np.ndarray) -> "TruthModel":
+    def with_params(self, x: np.ndarray) -> Self:
         return self  # the truth has nothing to fit
 
     def _uv(self, xn: np.ndarray) -> np.ndarray:
@@ -62,6 +63,13 @@ class TruthModel(CameraModel):
 
     def distortion_json(self) -> dict[str, Any]:
         return {"type": self.kind, "lens": self.lens}
+
+    @classmethod
+    def from_json(cls, intrinsics: np.ndarray, distortion: dict[str, Any], base: str) -> Self:
+        """The truth back from its ``distortion_json`` (the intrinsics are the lens's own)."""
+        if distortion.get("lens") not in synth.KINDS:
+            raise FormatError(f"distortion.lens: expected one of {synth.KINDS}, got {distortion.get('lens')!r}")
+        return cls(distortion["lens"])
 
 
 def truth_calibration(kind: str) -> Calibration:

@@ -76,6 +76,9 @@ def register(sub) -> None:
                         "of its fit), bspline (the paper's field; settings below), zhang, rational, fisheye, mls, tps")
     p.add_argument("-o", "--output", help="write the freecal.calibration/1 JSON here")
     p.add_argument("--json", action="store_true", help="print the calibration JSON instead of a summary")
+    p.add_argument("--report", metavar="DIR",
+                   help="write the report the results page shows into DIR: residual tables (JSON, CSV), heatmap, "
+                        "distortion field, knot grid, projection uncertainty, and their figures (PNG)")
     p.add_argument("--outlier-sigma", type=float, default=5.0,
                    help="reject residuals beyond this many robust sigmas (0: keep all)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -134,13 +137,39 @@ def run(args) -> int:
                     outlier_sigma=args.outlier_sigma, **settings_of(args))
     if args.output:
         cal.save(args.output)
+    written = write_report(Path(args.report), cal, obs) if args.report else []
     if args.json:
         print_json(cal.to_json())
     else:
         print_summary(cal)
         if args.output:
             print(f"\nwrote {args.output}")
+        if written:
+            print(f"wrote the report into {args.report}: {', '.join(written)}")
     return 0
+
+
+def write_report(folder: Path, cal, obs: Observations) -> list[str]:
+    """The results page's products and their figures, as files in ``folder``."""
+    import json
+
+    from calib_core.calibration import json_safe
+    from calib_core.report import figures, tables
+
+    products = tables.report_files(cal, obs)
+    products["knot_cells.json"] = tables.knot_cells(cal, products["corner_residuals.json"])
+    products["uncertainty.json"] = tables.uncertainty_map(cal, obs)
+    files = {name: content for name, content in products.items() if content is not None}
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, content in files.items():
+        if isinstance(content, str):
+            (folder / name).write_text(content)
+        else:
+            (folder / name).write_text(json.dumps(json_safe(content), indent=1 if name == "calibration.json" else None))
+    for name, png in figures.report_figures(products).items():
+        (folder / name).write_bytes(png)
+        files[name] = png
+    return sorted(files)
 
 
 def print_summary(cal) -> None:

@@ -1,0 +1,41 @@
+"""A field fit that ends far from a parametric camera on the same corners is
+caught, restarted from that camera, and reported."""
+import dataclasses
+
+import numpy as np
+
+from calib_core.methods.bspline import _restarted, wrong_camera
+from calib_core.fitting.init import initialise
+from calib_core.pipeline import calibrate, to_data
+from calib_core.fitting.solve import SolveSettings, levenberg_marquardt
+
+from ..conftest import synthetic
+
+
+def test_a_fit_stopped_at_a_wrong_focal_length_is_caught_and_restarted():
+    obs = synthetic("asymmetric").train
+    data, _, _ = to_data(obs)
+    good = calibrate(obs, "bspline", outlier_sigma=0, intervals=8, lambda_smooth=10.0)
+    init = initialise(data, obs.image_size)
+    reference = (init.model, init.poses)
+    poses = np.array([np.concatenate([v.rvec, v.tvec]) for v in good.views])
+    # The fx 210 kind: the camera 30 % short, stopped there.
+    k = good.model.intrinsics.copy()
+    k[:2] *= 0.7
+    bad_start = good.model.with_params(np.concatenate([k, good.model.params()[5:]]))
+    final = SolveSettings(500, 1e-6, gauss_newton_trials=True)
+    stuck = levenberg_marquardt(bad_start, poses, data, dataclasses.replace(final, max_iterations=1))
+    why = wrong_camera(stuck, reference, data)
+    assert why  # a 30 % shorter camera fits far worse than the parametric one
+    restart_from = good.model.with_params(np.concatenate([init.model.intrinsics, good.model.params()[5:]]))
+    kept, report = _restarted(stuck, restart_from, reference, data, final, why)
+    assert report["kept"] == "restarted" and "warning" not in report
+    assert wrong_camera(kept, reference, data) == ""
+    assert abs(kept.model.intrinsics[0] / 305.18 - 1) < 0.01
+    assert np.sqrt(np.mean(np.sum(kept.residuals ** 2, axis=1))) < 0.45
+
+
+def test_a_good_fit_is_not_restarted():
+    for kind in ("radial", "asymmetric"):
+        cal = calibrate(synthetic(kind).train, "bspline")
+        assert "restart" not in cal.diagnostics

@@ -7,7 +7,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test bench clean
+.PHONY: run test test-fast lint bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,9 +18,17 @@ $(STAMP): pyproject.toml
 run: $(STAMP)
 	$(VENV)/bin/freecal serve --data-dir data
 
-test: $(STAMP)
+test: $(STAMP) lint
 	@bash scripts/ensure-system-packages.sh
 	$(PY) -m pytest
+
+# The quick loop while editing: the science's tests that take under 5 s each (no server, no browser).
+test-fast: $(STAMP)
+	$(PY) -m pytest -q -m "not slow" tests/core
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
 
 bench: $(STAMP)
 	$(PY) -m benchmarks $(NAME)

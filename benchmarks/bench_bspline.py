@@ -15,11 +15,10 @@ import time
 
 import numpy as np
 
+from backend.commands.output import table as print_table
 from calib_core import calibrate, synth
 from calib_core.evaluation.evaluate import evaluate
 from calib_core.fitting.metrics import noise_floor
-
-from backend.commands.output import table as print_table
 
 # The paper's model (no parametric core) and freecal's default, side by side.
 VARIANTS = {
@@ -154,7 +153,7 @@ def density(seeds: int) -> None:
     grid_rows, rows = [], []
     for kind in ("asymmetric", "radial"):
         for core in ("none", "auto"):
-            def mean_run(**kw):
+            def mean_run(kind=kind, core=core, **kw):
                 rs = [run(kind, 0.3, sd, core=core, **kw) for sd in range(seeds)]
                 picks = {grid_of(r["cal"], with_factor=True) for r in rs}
                 return mean_of(rs, "holdout"), mean_of(rs, "seconds"), picks

@@ -21,15 +21,15 @@ import time
 import numpy as np
 
 from backend.commands.output import table as print_table
-from calib_core.detection import babelcalib
-from calib_core.fitting import metrics
 from calib_core import synth
-from calib_core.evaluation.compare import compare, validation_residuals
+from calib_core.detection import babelcalib
 from calib_core.errors import CalibError
+from calib_core.evaluation.compare import compare, validation_residuals
+from calib_core.evaluation.uncertainty import aligned_projection, projection_uncertainty
+from calib_core.fitting import metrics
+from calib_core.fitting.solve import Data, SolveSettings, levenberg_marquardt
 from calib_core.observations import Observations, View
 from calib_core.pipeline import calibrate, to_data
-from calib_core.fitting.solve import Data, SolveSettings, levenberg_marquardt
-from calib_core.evaluation.uncertainty import aligned_projection, projection_uncertainty
 
 from . import mrcal_bridge
 from .bench_bspline import warm_up

@@ -21,13 +21,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from calib_core.synth import render
 from calib_core import synth
 from calib_core.board import BoardSpec
 from calib_core.detection.corner_error import corner_errors
 from calib_core.detection.detect import detect_images, image_paths
 from calib_core.detection.detect_image import CLASSIC_FLAGS, SUBPIX, read_gray
 from calib_core.observations import Observations, View
+from calib_core.synth import render
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 SETS = {  # name → board spec
@@ -95,7 +95,7 @@ def _print_table(header: list[str], rows: list[tuple]) -> None:
     text = [[str(c) for c in r] for r in [tuple(header)] + rows]
     widths = [max(len(r[k]) for r in text) for k in range(len(header))]
     for i, r in enumerate(text):
-        print("  ".join(c.rjust(w) for c, w in zip(r, widths)), flush=True)
+        print("  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)), flush=True)
         if i == 0:
             print("  ".join("-" * w for w in widths))
 

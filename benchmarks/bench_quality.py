@@ -19,8 +19,8 @@ import time
 
 from calib_core import synth
 from calib_core.errors import CalibError
-from calib_core.pipeline import calibrate
 from calib_core.evaluation.quality import METRICS, geometric_quality, raw_quality
+from calib_core.pipeline import calibrate
 from calib_core.synth.truth import truth_calibration
 
 METHODS = ["zhang", "rational", "fisheye", "mls", "tps", "bspline"]
@@ -62,7 +62,7 @@ def main(argv: list[str]) -> int:
         for which in sets:
             obs = data.train if which == "train" else data.holdout
             print(f"\nTable 7, synthetic {kind} lens, {which} boards "
-                  f"({'σ = %g px' % args.sigma if which == 'train' else 'noise-free'}; {obs.n_points} corners); "
+                  f"({f'σ = {args.sigma:g} px' if which == 'train' else 'noise-free'}; {obs.n_points} corners); "
                   "paper (real lens) in brackets")
             rows = [("raw image", raw_quality(obs))]
             rows += [(name, geometric_quality(cal, obs, with_smoothness=True)) for name, cal in cals.items()]
@@ -73,10 +73,10 @@ def main(argv: list[str]) -> int:
                 cells.append([name] + [_fmt(q.get(k)) + (f" [{paper[i]:g}]" if paper else "")
                                        for i, (k, _) in enumerate(METRICS)])
             widths = [max(len(h), *(len(r[i]) for r in cells)) for i, h in enumerate(head)]
-            print("  ".join(h.rjust(w) for h, w in zip(head, widths)))
+            print("  ".join(h.rjust(w) for h, w in zip(head, widths, strict=True)))
             print("  ".join("-" * w for w in widths))
             for r in cells:
-                print("  ".join(c.rjust(w) for c, w in zip(r, widths)), flush=True)
+                print("  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)), flush=True)
     return 0
 
 

@@ -4,11 +4,11 @@
     cal = calibrate(Observations.load("obs.json"), method="bspline")
     cal.save("cal.json")
 """
-from .pipeline import calibrate
 from .calibration import Calibration
 from .errors import CalibError, DataError, FormatError, SettingsError
 from .evaluation.evaluate import evaluate
 from .observations import Observations, View
+from .pipeline import calibrate
 
 __all__ = ["calibrate", "evaluate", "Calibration", "Observations", "View",
            "CalibError", "DataError", "FormatError", "SettingsError"]

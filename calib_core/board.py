@@ -139,7 +139,7 @@ class BoardSpec:
 
     # ---- text and JSON --------------------------------------------------
     @classmethod
-    def parse(cls, spec: str) -> "BoardSpec":
+    def parse(cls, spec: str) -> BoardSpec:
         """``chessboard:9x6:25mm`` or ``charuco:5x7:40mm:20mm:DICT_6X6_250[:legacy]``."""
         if not isinstance(spec, str) or not spec.strip():
             raise SettingsError(f"board spec is empty; {_EXAMPLES}")
@@ -180,7 +180,7 @@ class BoardSpec:
                 "dictionary": dictionary, "legacy": bool(self.legacy), "units": self.units}
 
     @classmethod
-    def from_json(cls, doc: dict) -> "BoardSpec":
+    def from_json(cls, doc: dict) -> BoardSpec:
         if not isinstance(doc, dict):
             raise FormatError("board: expected an object like {\"type\": \"chessboard\", \"cols\": 9, ...}")
         kind = doc.get("type")

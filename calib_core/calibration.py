@@ -11,9 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from .models import camera, unproject
 from .errors import FormatError
-from .models import MODEL_TYPES, CameraModel
+from .models import MODEL_TYPES, CameraModel, camera, unproject
 from .observations import read_json, write_json
 
 FORMAT = "freecal.calibration/1"
@@ -113,7 +112,7 @@ class Calibration:
         }
 
     @classmethod
-    def from_json(cls, doc: Any) -> "Calibration":
+    def from_json(cls, doc: Any) -> Calibration:
         try:
             return cls._from_json(doc)
         except (TypeError, ValueError, OverflowError, KeyError, IndexError, AttributeError) as exc:
@@ -122,7 +121,7 @@ class Calibration:
                               f"expected {FORMAT} as in formats.md") from None
 
     @classmethod
-    def _from_json(cls, doc: Any) -> "Calibration":
+    def _from_json(cls, doc: Any) -> Calibration:
         if not isinstance(doc, dict):
             raise FormatError("calibration: expected a JSON object at the top level")
         if doc.get("format") != FORMAT:
@@ -163,7 +162,7 @@ class Calibration:
                    dict(doc.get("settings", {})), dict(doc.get("diagnostics", {})))
 
     @classmethod
-    def load(cls, path: str | Path) -> "Calibration":
+    def load(cls, path: str | Path) -> Calibration:
         return cls.from_json(read_json(path))
 
     def save(self, path: str | Path) -> None:

@@ -35,7 +35,7 @@ class View:
     def __len__(self) -> int:
         return len(self.image_points)
 
-    def subset(self, mask: np.ndarray) -> "View":
+    def subset(self, mask: np.ndarray) -> View:
         ids = None if self.ids is None else self.ids[mask]
         return View(self.name, self.object_points[mask], self.image_points[mask], ids)
 
@@ -59,7 +59,7 @@ class Observations:
                 return v
         raise KeyError(name)
 
-    def select(self, names: list[str]) -> "Observations":
+    def select(self, names: list[str]) -> Observations:
         """The views named, in that order."""
         return Observations(self.image_size, [self.view(n) for n in names], self.board)
 
@@ -82,7 +82,7 @@ class Observations:
         return out
 
     @classmethod
-    def from_json(cls, doc: Any) -> "Observations":
+    def from_json(cls, doc: Any) -> Observations:
         try:
             return cls._from_json(doc)
         except (TypeError, ValueError, OverflowError) as exc:  # a shape no check below foresaw
@@ -90,7 +90,7 @@ class Observations:
                               f"expected {FORMAT} as in formats.md") from None
 
     @classmethod
-    def _from_json(cls, doc: Any) -> "Observations":
+    def _from_json(cls, doc: Any) -> Observations:
         if not isinstance(doc, dict):
             raise FormatError("observations: expected a JSON object at the top level")
         fmt = doc.get("format")
@@ -117,7 +117,7 @@ class Observations:
         return cls(image_size, views, board)
 
     @classmethod
-    def load(cls, path: str | Path) -> "Observations":
+    def load(cls, path: str | Path) -> Observations:
         return cls.from_json(read_json(path))
 
     def save(self, path: str | Path) -> None:
@@ -176,7 +176,7 @@ def _points(where: str, key: str, raw: Any, dim: int) -> np.ndarray:
     return np.asarray(raw, dtype=np.float64).reshape(-1, dim)
 
 
-def _inside(k: int, rv: Any, view: "View", image_size: tuple[int, int]) -> None:
+def _inside(k: int, rv: Any, view: View, image_size: tuple[int, int]) -> None:
     """Observed corners lie in the image; one a whole image width or height outside is a wrong value."""
     w, h = image_size
     far = ((view.image_points < [-w, -h]) | (view.image_points > [2 * w, 2 * h])).any(axis=1)

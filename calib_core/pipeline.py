@@ -13,13 +13,13 @@ from scipy.spatial import ConvexHull, QhullError
 from threadpoolctl import threadpool_limits
 
 from . import ranges
-from .fitting import metrics
 from .calibration import Calibration, ViewResult
 from .errors import DataError, SettingsError
+from .fitting import metrics
+from .fitting.solve import Data, SolveSettings, levenberg_marquardt
 from .methods import METHODS
 from .methods.common import Progress, no_progress, settings_from
 from .observations import Observations
-from .fitting.solve import Data, SolveSettings, levenberg_marquardt
 
 MIN_VIEWS = 3
 MIN_POINTS_PER_VIEW = 6

@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = ROOT.parent / "shared" / "data"
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def synthetic(kind: str, sigma: float = 0.3, seed: int = 0) -> synth.SynthSet:
     return synth.generate(kind, sigma, seed)
 

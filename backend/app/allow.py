@@ -36,7 +36,7 @@ def methods_of(schema: dict, path: str) -> list[str]:
     return sorted(methods)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _pattern(template: str) -> re.Pattern:
     """``/api/jobs/{job_id}`` → a pattern matching ``/api/jobs/<one segment>``."""
     return re.compile(re.sub(r"\\\{[^}]+\\\}", "[^/]+", re.escape(template)))

@@ -10,7 +10,8 @@ quote a value) sees at most ``MAX_DEPTH`` levels.
 from __future__ import annotations
 
 import json
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from fastapi import HTTPException, Request
 from fastapi.routing import APIRoute

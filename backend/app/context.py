@@ -31,6 +31,6 @@ class Context:
                                 "permissions or free space, or choose another with --data-dir / FREECAL_DATA_DIR") from None
 
     @classmethod
-    def open(cls, settings: Settings) -> "Context":
+    def open(cls, settings: Settings) -> Context:
         settings.data_dir.mkdir(parents=True, exist_ok=True)
         return cls(settings, Database(settings.db_path), Storage(settings.data_dir))

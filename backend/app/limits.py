@@ -13,8 +13,9 @@ every other body (JSON: a job with inline observations) FREECAL_MAX_OBSERVATIONS
 from __future__ import annotations
 
 import json
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
-from typing import Any, Awaitable, Callable
+from typing import Any
 
 Scope = dict[str, Any]
 Message = dict[str, Any]

@@ -9,23 +9,22 @@ beside it, ``freecal worker`` starts more). Static pages (frontend/) and the
 from __future__ import annotations
 
 import logging
+from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
-from typing import AsyncIterator
 
 from fastapi import FastAPI
 
 from ..queue.recovery import Periodic, recover_stale, requeue_pending
 from ..queue.tasks import QueueUnavailable, build_queue
-from . import allow, errors
+from . import allow, errors, frontend
 from .context import Context
-from .limits import BodyLimit, Limit
-from . import frontend
 from .header_limit import HeaderLimit
 from .headers import SecurityHeaders
+from .limits import BodyLimit, Limit
 from .openapi import install_schema
 from .origins import Allowed, OriginGuard
-from .security import ClientQuota, TokenDep, check_viewer_exposure, install_cors, install_docs
 from .routers import figures, health, images, jobs, rectified, sets, viewer
+from .security import ClientQuota, TokenDep, check_viewer_exposure, install_cors, install_docs
 from .settings import Settings
 
 log = logging.getLogger("freecal.api")

@@ -66,7 +66,7 @@ class Allowed:
     origins: frozenset[str]   # as origin_of writes them
 
     @classmethod
-    def of(cls, settings) -> "Allowed":
+    def of(cls, settings) -> Allowed:
         extra = {split_host(h)[0] for h in settings.allowed_hosts.split(",") if h.strip()}
         bound = split_host(settings.host)[0]
         origins = {origin_of(o.rstrip("/")) for o in settings.cors_origins.split(",") if o.strip()}

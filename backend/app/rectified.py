@@ -12,8 +12,8 @@ import cv2
 import numpy as np
 
 from calib_core import Calibration, Observations
-from calib_core.evaluation.quality import geometric_quality, raw_quality
 from calib_core.errors import CalibError
+from calib_core.evaluation.quality import geometric_quality, raw_quality
 from calib_core.products.rectify import fixed_camera, rectified_camera, rectify_image, undistort_maps
 
 from . import storage

@@ -66,7 +66,7 @@ class JobCreate(BaseModel):
                                      "{\"knots\": \"uniform\", \"intervals\": [8, 8], \"lambda_smooth\": 0.1}")
 
     @model_validator(mode="after")
-    def one_input(self) -> "JobCreate":
+    def one_input(self) -> JobCreate:
         if (self.set_id is None) == (self.observations is None):
             raise ValueError("give exactly one of set_id (an uploaded image set) or observations "
                              "(a freecal.observations/1 document)")

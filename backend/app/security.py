@@ -32,7 +32,6 @@ from calib_core.errors import SettingsError
 from .errors import ApiError
 from .repository import jobs as job_rows
 
-
 TOKEN_NEEDED = ("this server needs a token: send the header 'Authorization: Bearer <token>' "
                 "(or ?token=<token> in a link); ask its administrator for FREECAL_TOKEN")
 LOOPBACK = ("127.0.0.1", "localhost", "::1")

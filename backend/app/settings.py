@@ -75,7 +75,7 @@ class Settings:
         return self.data_dir / "queue.db"
 
     @classmethod
-    def from_env(cls, env: dict[str, str] | None = None, **overrides: Any) -> "Settings":
+    def from_env(cls, env: dict[str, str] | None = None, **overrides: Any) -> Settings:
         """Read ``FREECAL_<FIELD>`` (e.g. ``FREECAL_DATA_DIR``); ``overrides`` win."""
         env = os.environ if env is None else env
         values: dict[str, Any] = {}

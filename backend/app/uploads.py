@@ -16,7 +16,6 @@ from .errors import ApiError
 from .image_header import check_decodable, check_pixels
 from .settings import Settings
 
-
 MIN_SIDE = 32               # pixels: no board's corners fit in less
 MAX_ZIP_RATIO = 200         # unpacked / packed bytes of a zip's images
 CHUNK_SLACK = 1024 * 1024    # small zips of tiny images may compress better: no ratio check below this

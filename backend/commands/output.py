@@ -4,7 +4,8 @@ from __future__ import annotations
 import json
 import sys
 import time
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 
 def table(headers: Sequence[str], rows: Sequence[Sequence[Any]], file=None) -> None:
@@ -17,10 +18,10 @@ def table(headers: Sequence[str], rows: Sequence[Sequence[Any]], file=None) -> N
     cells = [[fmt(v) for v in r] for r in rows]
     widths = [max(len(h), *(len(r[i]) for r in cells)) if cells else len(h) for i, h in enumerate(headers)]
     out = file or sys.stdout
-    print("  ".join(h.rjust(w) for h, w in zip(headers, widths)), file=out)
+    print("  ".join(h.rjust(w) for h, w in zip(headers, widths, strict=True)), file=out)
     print("  ".join("-" * w for w in widths), file=out)
     for r in cells:
-        print("  ".join(c.rjust(w) for c, w in zip(r, widths)), file=out)
+        print("  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)), file=out)
 
 
 def print_json(doc: Any) -> None:

@@ -6,8 +6,14 @@ from pathlib import Path
 
 from calib_core import Calibration
 from calib_core.errors import SettingsError
-from calib_core.products.rectify import (RectifyError, fixed_camera, rectified_camera, rectify_image, save_maps,
-    undistort_maps)
+from calib_core.products.rectify import (
+    RectifyError,
+    fixed_camera,
+    rectified_camera,
+    rectify_image,
+    save_maps,
+    undistort_maps,
+)
 
 KEEP = {"valid": 0.0, "all": 1.0}
 

@@ -12,17 +12,17 @@ import concurrent.futures as cf
 import multiprocessing as mp
 import os
 from collections import Counter
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Callable, Iterable
 
 import numpy as np
 
 from ..board import BoardSpec
-from ..evaluation.coverage import coverage, coverage_warning
-from .detect_image import ImageResult, detect_file
 from ..errors import DataError
+from ..evaluation.coverage import coverage, coverage_warning
 from ..observations import Observations, View
+from .detect_image import ImageResult, detect_file
 
 # What the command line and the service read (the service checks each one's header: backend/app/image_header.py)
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm", ".pbm", ".pnm")
@@ -107,7 +107,7 @@ def _run_all(files, names, board, progress, workers) -> list[ImageResult]:
     if n > 1:
         try:
             with cf.ProcessPoolExecutor(n, mp_context=_context(), initializer=_init_worker) as pool:
-                futures = {pool.submit(detect_file, str(f), board, nm): k for k, (f, nm) in enumerate(zip(files, names))}
+                futures = {pool.submit(detect_file, str(f), board, nm): k for k, (f, nm) in enumerate(zip(files, names, strict=True))}
                 for fut in cf.as_completed(futures):
                     k = futures[fut]
                     try:
@@ -119,7 +119,7 @@ def _run_all(files, names, board, progress, workers) -> list[ImageResult]:
                         progress(done, total)
         except (OSError, PermissionError, NotImplementedError, cf.process.BrokenProcessPool, RuntimeError):
             pass  # no pool here (sandbox, no /dev/shm...): fall back to this process
-    for k, (f, nm) in enumerate(zip(files, names)):
+    for k, (f, nm) in enumerate(zip(files, names, strict=True)):
         if results[k] is None:
             results[k] = detect_file(f, board, nm)
             done += 1

@@ -17,22 +17,23 @@ web service serves): ``{"methods": {name: {...}}, "verdict": name, ...}``.
 """
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..fitting import metrics
-from . import quality
-from ..fitting.choice import Candidate, choose
 from ..calibration import Calibration
-from ..fitting.crossval import folds
 from ..errors import CalibError, DataError, SettingsError
+from ..fitting import metrics
+from ..fitting.choice import Candidate, choose
+from ..fitting.crossval import folds
 from ..fitting.init import poses_from_rays
+from ..fitting.solve import SolveSettings, levenberg_marquardt
 from ..methods import METHODS
 from ..observations import Observations
 from ..pipeline import MIN_VIEWS, calibrate, to_data
-from ..fitting.solve import SolveSettings, levenberg_marquardt
+from . import quality
 
 DEFAULT_METHODS = ("zhang", "rational", "fisheye", "mls", "tps", "bspline")
 # The verdict's order of simplicity: parametric models by their number of
@@ -121,7 +122,7 @@ def _cross_validate(obs: Observations, method: str, splits: int) -> tuple[dict[s
         "splits": rows,
         "calibration_rmse": _mean_std(cal_rmse),
         "validation_rmse": _mean_std(val_rmse),
-        "increase": _mean_std([v - c for v, c in zip(val_rmse, cal_rmse)]),
+        "increase": _mean_std([v - c for v, c in zip(val_rmse, cal_rmse, strict=True)]),
     }
     return out, (np.concatenate(all_res), np.concatenate(all_obj), np.concatenate(all_view))
 

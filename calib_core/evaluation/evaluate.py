@@ -5,13 +5,13 @@ from typing import Any
 
 import numpy as np
 
-from ..fitting import metrics
-from ..pipeline import to_data
 from ..calibration import Calibration
 from ..errors import DataError
+from ..fitting import metrics
 from ..fitting.init import poses_from_rays
-from ..observations import Observations
 from ..fitting.solve import SolveSettings, levenberg_marquardt
+from ..observations import Observations
+from ..pipeline import to_data
 
 
 def evaluate(cal: Calibration, obs: Observations) -> dict[str, Any]:

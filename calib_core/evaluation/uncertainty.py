@@ -35,10 +35,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..models import camera
-from ..models.base import CameraModel
 from ..fitting.gram import gram
 from ..fitting.solve import Data, SolveSettings, _assemble
+from ..models import camera
+from ..models.base import CameraModel
 
 
 @dataclass

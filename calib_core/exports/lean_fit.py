@@ -19,9 +19,9 @@ import numpy as np
 
 from ..calibration import Calibration
 from ..errors import CalibError, SettingsError
+from ..fitting.solve import Data, SolveSettings, levenberg_marquardt
 from ..models import FisheyeModel, OpenCVModel
 from ..models.base import ParametricModel
-from ..fitting.solve import Data, SolveSettings, levenberg_marquardt
 
 LEAN_MODELS: dict[str, tuple[str, int]] = {
     "opencv4": ("opencv", 4), "opencv5": ("opencv", 5), "opencv8": ("opencv", 8),

@@ -21,8 +21,8 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..models import camera
 from ..errors import DataError
+from ..models import camera
 from ..models.base import CameraModel
 from ..models.fisheye import FisheyeModel
 from .solve import Data, SolveSettings, levenberg_marquardt, spread_views
@@ -173,7 +173,7 @@ def _candidates(data: Data, image_size) -> list[tuple[str, float, float, np.ndar
 
 # One calibration may try several models from the same start (bspline's core
 # choice fits two): the initialisation of a given Data is computed once.
-_CACHE: "weakref.WeakKeyDictionary[Data, dict]" = weakref.WeakKeyDictionary()
+_CACHE: weakref.WeakKeyDictionary[Data, dict] = weakref.WeakKeyDictionary()
 
 
 def initialise(data: Data, image_size: tuple[int, int], n_coefficients: int = 4) -> Initial:

@@ -17,7 +17,6 @@ from scipy.spatial import Delaunay, QhullError
 from .. import ranges
 from ..errors import SettingsError
 
-
 STRATEGIES = ("kde", "kde-paper", "uniform", "explicit")
 # Knot intervals per direction: the grid has (n + 3)² control points, and the solver's
 # matrices grow with their square (1 000 000 intervals asked for 14.6 TiB). 50 is over
@@ -290,7 +289,7 @@ def breaks_for(samples: np.ndarray, weights: np.ndarray, domain, settings: KnotS
 def explicit_breaks(domain, interior):
     """The domain ends around given interior knots (those outside the domain dropped)."""
     out = []
-    for (lo, hi), knots in zip(((domain[0], domain[1]), (domain[2], domain[3])), interior):
+    for (lo, hi), knots in zip(((domain[0], domain[1]), (domain[2], domain[3])), interior, strict=True):
         k = np.unique(np.asarray(knots, dtype=float))
         out.append(np.concatenate([[lo], k[(k > lo) & (k < hi)], [hi]]))
     return out[0], out[1]

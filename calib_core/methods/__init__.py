@@ -7,7 +7,8 @@ rest (views, outliers, metrics, JSON) the same way for every method.
 """
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from ..fitting.solve import Data
 from ..models.base import CameraModel

@@ -141,7 +141,7 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -
     counts = np.bincount(sample.view_index[kept], minlength=sample.n_views)
     candidates = []
     core_steps: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # core → (its free parameters, their moves per view)
-    for spec, fit, reason in zip(specs, fits, why_not):
+    for spec, fit, reason in zip(specs, fits, why_not, strict=True):
         errors = None
         if fit is not None:
             used = ~fit.excluded

@@ -25,27 +25,28 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
 from .. import ranges
+from ..errors import DataError, SettingsError
 from ..fitting import knots, metrics
-from ..fitting.knots import KnotSettings
 from ..fitting.choice import Candidate, choose
 from ..fitting.crossval import linearised_view_errors
-from ..models import camera
-from ..models.bspline_basis import BSplineField, clamped_knots
-from ..errors import DataError, SettingsError
 from ..fitting.init import initialise
+from ..fitting.knots import KnotSettings
 from ..fitting.metrics import design_diagnostics
-from ..models.bspline import GAUGE_WEIGHT, BSplineModel, gauge_rows
-from ..models.base import CameraModel
-from ..models.hybrid import HybridModel
 from ..fitting.smoothing import LAMBDA_GRID, CVCurve, cv_curve, groups_of
 from ..fitting.solve import Data, SolveSettings, levenberg_marquardt, residuals
+from ..models import camera
+from ..models.base import CameraModel
+from ..models.bspline import GAUGE_WEIGHT, BSplineModel, gauge_rows
+from ..models.bspline_basis import BSplineField, clamped_knots
+from ..models.hybrid import HybridModel
 from .common import Fit, Progress
 from .fisheye import FisheyeSettings, fit_fisheye
 from .opencv import OpenCVSettings, RationalSettings, fit_opencv

@@ -14,11 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import ranges
-from ..models import camera
 from ..errors import DataError, SettingsError
 from ..fitting.init import initialise
-from ..models.opencv import ALLOWED_COUNTS, OpenCVModel
 from ..fitting.solve import Data, SolveResult, SolveSettings, levenberg_marquardt
+from ..models import camera
+from ..models.opencv import ALLOWED_COUNTS, OpenCVModel
 from .common import Fit, Progress
 
 # A pinhole model maps a ray θ off axis to tan θ: past this angle it cannot

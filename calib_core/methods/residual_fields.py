@@ -16,23 +16,22 @@ search (the field is what is being validated).
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
 
 import numpy as np
 
 from .. import ranges
 from ..errors import DataError
-from ..models import camera
-from ..models.mls import MLSField, MLSModel
-from ..models.tps import TPSField, TPSModel, affine_basis, kernel_matrix
 from ..fitting.solve import Data, ModelT, SolveResult, SolveSettings, levenberg_marquardt, residuals
+from ..models import camera
 from ..models.base import CameraModel
+from ..models.mls import MLSField, MLSModel
 from ..models.opencv import OpenCVModel
 from ..models.residual_field import Field, ResidualFieldModel
+from ..models.tps import TPSField, TPSModel, affine_basis, kernel_matrix
 from .common import Fit, Progress
 from .opencv import OpenCVSettings, fit_opencv
-
 
 MAX_CENTERS = 2000   # a TPS system is max_centers² (2000: 32 MB, solved once per fold and grid value)
 MAX_FOLDS = 20
@@ -164,7 +163,7 @@ def _fit_field(res: SolveResult[OpenCVModel], data: Data, image_size: tuple[int,
     best = int(np.argmin(scores))
     chosen = build(samples, offsets)[best] if len(grid) > 1 else build(samples, offsets)[0]
     model = TPSModel(core, chosen) if isinstance(chosen, TPSField) else MLSModel(core, chosen)
-    table = [{"value": float(v), "cv_rmse": float(e)} for v, e in zip(grid, scores)]
+    table = [{"value": float(v), "cv_rmse": float(e)} for v, e in zip(grid, scores, strict=True)]
     return model, grid[best], table
 
 

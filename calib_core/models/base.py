@@ -51,7 +51,7 @@ class CameraModel(ABC):
         """Extra residual rows linear in the parameters, ``(r, J)``, or None."""
         return None
 
-    def restored(self, settings: dict[str, Any]) -> "CameraModel":
+    def restored(self, settings: dict[str, Any]) -> CameraModel:
         """This model with what its JSON ``distortion`` leaves out but the
         calibration's ``settings`` record (regularisers, gauge, held parts):
         what a covariance needs to be the fit's own. Parametric models need

@@ -34,9 +34,9 @@ from typing import Any, Self
 import numpy as np
 import scipy.sparse as sp
 
-from .bspline_basis import BSplineField
 from ..errors import FormatError
 from .base import CameraModel, Prior, intrinsics_jacobian
+from .bspline_basis import BSplineField
 
 GAUGE_WEIGHT = 1e4  # constraint rows are multiplied by this: violations ~1e-8 px
 
@@ -176,7 +176,7 @@ class BSplineModel(CameraModel):
     def bspline_field(self) -> BSplineField:
         return self.field
 
-    def restored(self, settings: dict[str, Any]) -> "BSplineModel":
+    def restored(self, settings: dict[str, Any]) -> BSplineModel:
         # P₀ (the initial camera's field) is not recorded: the prior rows, and
         # so the covariance, do not depend on it.
         lambda_reg, lambda_smooth, gauge_point = recorded_regularisation(settings, (self.lambda_reg, self.lambda_smooth))

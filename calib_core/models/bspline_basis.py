@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from . import bspline_kernel
 from ..errors import FormatError
+from . import bspline_kernel
 
 DEGREE = 3
 
@@ -116,7 +116,7 @@ class BSplineField:
         self.control = control
 
     @classmethod
-    def zeros(cls, knots_u, knots_v) -> "BSplineField":
+    def zeros(cls, knots_u, knots_v) -> BSplineField:
         n_u, n_v = len(knots_u) - DEGREE - 1, len(knots_v) - DEGREE - 1
         return cls(knots_u, knots_v, np.zeros((n_u, n_v, 2)))
 
@@ -137,7 +137,7 @@ class BSplineField:
         """(u_min, u_max, v_min, v_max)."""
         return self.knots_u[DEGREE], self.knots_u[-DEGREE - 1], self.knots_v[DEGREE], self.knots_v[-DEGREE - 1]
 
-    def with_control(self, control: np.ndarray) -> "BSplineField":
+    def with_control(self, control: np.ndarray) -> BSplineField:
         """Same knots, new control values (no re-validation: the solver's fast path)."""
         new = object.__new__(BSplineField)
         new.knots_u, new.knots_v = self.knots_u, self.knots_v
@@ -185,7 +185,7 @@ class BSplineField:
         }
 
     @classmethod
-    def from_json(cls, doc: dict[str, Any], where: str = "distortion") -> "BSplineField":
+    def from_json(cls, doc: dict[str, Any], where: str = "distortion") -> BSplineField:
         if doc.get("degree", [DEGREE, DEGREE]) != [DEGREE, DEGREE]:
             raise FormatError(f"{where}.degree: version 1 allows [3, 3] only, got {doc.get('degree')!r}")
         for key in ("knots_u", "knots_v", "control_x", "control_y"):

@@ -24,10 +24,10 @@ from typing import Any, Self
 import numpy as np
 import scipy.sparse as sp
 
-from .bspline_basis import BSplineField
 from ..errors import FormatError
 from .base import CameraModel, ParametricModel, Prior, core_inverse_start
 from .bspline import GAUGE_WEIGHT, field_prior_rows, recorded_regularisation
+from .bspline_basis import BSplineField
 from .fisheye import FisheyeModel
 from .opencv import OpenCVModel
 
@@ -135,7 +135,7 @@ class HybridModel(CameraModel):
             "field_held": self.field_held,
         }
 
-    def restored(self, settings: dict[str, Any]) -> "HybridModel":
+    def restored(self, settings: dict[str, Any]) -> HybridModel:
         lambda_reg, lambda_smooth, gauge_point = recorded_regularisation(settings, (self.lambda_reg, self.lambda_smooth))
         return HybridModel(self.core, self.field, lambda_reg, lambda_smooth, gauge_point,
                            settings.get("field_held") is True)

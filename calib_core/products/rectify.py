@@ -101,7 +101,7 @@ def border_normalised(cal: Calibration, samples: int = BORDER_SAMPLES,
     phi = np.arctan2(rays[:, 1], rays[:, 0])
     r = np.tan(np.minimum(theta, np.radians(max_angle_deg)))
     xn = np.column_stack([r * np.cos(phi), r * np.sin(phi)])
-    return dict(zip(sides, np.split(xn, 4)))
+    return dict(zip(sides, np.split(xn, 4), strict=True))
 
 
 def rectified_camera(cal: Calibration, alpha: float = 0.0, size: tuple[int, int] | None = None) -> RectifiedCamera:

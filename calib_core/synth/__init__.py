@@ -37,9 +37,26 @@ filling the frame, from 10 poses tilted every way; corners outside the image are
 Gaussian, σ per axis. Hold-out views are noise-free views of a much larger
 board that together cover the whole image, corners included.
 """
-from .lenses import (DECENTRE, HOLDOUT_BOARD, IMAGE_SIZE, INTRINSICS, KINDS, LENSES, PAPER_KINDS, SQUARE, TILT,
-    TRAIN_BOARD, TRUTH_FORMAT, asymmetric_offset, decentred_distort, direction_cosines, freeform_offset,
-    opencv_distort, true_distort, true_project)
+from .lenses import (
+    DECENTRE,
+    HOLDOUT_BOARD,
+    IMAGE_SIZE,
+    INTRINSICS,
+    KINDS,
+    LENSES,
+    PAPER_KINDS,
+    SQUARE,
+    TILT,
+    TRAIN_BOARD,
+    TRUTH_FORMAT,
+    asymmetric_offset,
+    decentred_distort,
+    direction_cosines,
+    freeform_offset,
+    opencv_distort,
+    true_distort,
+    true_project,
+)
 from .protocol import SynthSet, board_points, generate, look_at_pose
 
 __all__ = ["DECENTRE", "HOLDOUT_BOARD", "IMAGE_SIZE", "INTRINSICS", "KINDS", "LENSES", "PAPER_KINDS", "SQUARE", "TILT",

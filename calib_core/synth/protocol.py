@@ -9,8 +9,17 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..observations import Observations, View
-from .lenses import (HOLDOUT_BOARD, IMAGE_SIZE, INTRINSICS, KINDS, LENSES, SQUARE, TRAIN_BOARD, TRUTH_FORMAT,
-    true_project)
+from .lenses import (
+    HOLDOUT_BOARD,
+    IMAGE_SIZE,
+    INTRINSICS,
+    KINDS,
+    LENSES,
+    SQUARE,
+    TRAIN_BOARD,
+    TRUTH_FORMAT,
+    true_project,
+)
 
 
 def board_points(cols: int, rows: int, square: float = SQUARE) -> np.ndarray:
@@ -117,7 +126,7 @@ def generate(kind: str = "radial", sigma: float = 0.3, seed: int = 0, n_views: i
         "image_size": list(IMAGE_SIZE),
         "intrinsics": {"fx": fx, "fy": fy, "cx": cx, "cy": cy, "skew": 0.0},
         "lens": LENSES[kind],
-        "train_views": [{"name": v.name, "rvec": p[:3].tolist(), "tvec": p[3:].tolist()} for v, p in zip(train_views, train_poses)],
-        "holdout_views": [{"name": v.name, "rvec": p[:3].tolist(), "tvec": p[3:].tolist()} for v, p in zip(hold_views, hold_poses)],
+        "train_views": [{"name": v.name, "rvec": p[:3].tolist(), "tvec": p[3:].tolist()} for v, p in zip(train_views, train_poses, strict=True)],
+        "holdout_views": [{"name": v.name, "rvec": p[:3].tolist(), "tvec": p[3:].tolist()} for v, p in zip(hold_views, hold_poses, strict=True)],
     }
     return SynthSet(Observations(IMAGE_SIZE, train_views, board), Observations(IMAGE_SIZE, hold_views, hboard), truth)

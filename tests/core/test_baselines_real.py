@@ -16,7 +16,7 @@ from calib_core.observations import Observations, View
 from ..conftest import shared_data
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def stereo_left() -> Observations:
     folder = shared_data("opencv-stereo-9x6")
     cols, rows = 9, 6

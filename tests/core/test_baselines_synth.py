@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from calib_core import Calibration, calibrate, synth
-from calib_core.evaluation.evaluate import evaluate
 from calib_core.errors import SettingsError
+from calib_core.evaluation.evaluate import evaluate
 
 from ..conftest import synthetic
 

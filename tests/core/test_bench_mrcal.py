@@ -6,8 +6,8 @@ import pytest
 
 from benchmarks import mrcal_bridge
 from benchmarks.bench_compare import thin
-from calib_core.detection import babelcalib
 from calib_core import synth
+from calib_core.detection import babelcalib
 
 from ..conftest import shared_data
 

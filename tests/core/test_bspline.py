@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 from scipy.interpolate import NdBSpline
 
-from calib_core.models.bspline_basis import BSplineField, basis, bending_operator, clamped_knots, validate_knots
 from calib_core.errors import FormatError
+from calib_core.models.bspline_basis import BSplineField, basis, bending_operator, clamped_knots, validate_knots
 
 
 @pytest.fixture

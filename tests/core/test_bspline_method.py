@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from calib_core import Calibration, calibrate
-from calib_core.evaluation.evaluate import evaluate
 from calib_core.errors import DataError, SettingsError
+from calib_core.evaluation.evaluate import evaluate
 from calib_core.fitting.metrics import noise_floor
 from calib_core.models.bspline import gauge_rows
 from calib_core.observations import Observations

@@ -6,8 +6,8 @@ import pytest
 
 from backend.cli import main as cli
 from calib_core import synth
-from calib_core.evaluation.compare import compare, neighbour_correlation
 from calib_core.errors import DataError, SettingsError
+from calib_core.evaluation.compare import compare, neighbour_correlation
 from calib_core.observations import Observations
 from calib_core.pipeline import calibrate
 

@@ -9,10 +9,10 @@ import pytest
 
 from backend.cli import main as cli
 from calib_core.board import BoardSpec
-from calib_core.evaluation.coverage import coverage, empty_regions
 from calib_core.detection.detect import detect_images
-from calib_core.errors import DataError
 from calib_core.detection.grid import expand, gap_strides, lattice_score, place_grid, right_handed
+from calib_core.errors import DataError
+from calib_core.evaluation.coverage import coverage, empty_regions
 
 BOARD = BoardSpec.parse("chessboard:6x5:10mm")
 

@@ -13,7 +13,7 @@ from calib_core.observations import Observations
 from tests.conftest import shared_data
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _detect(name: str, spec: str) -> Detection:
     root = shared_data(name)
     dirs = [root / "train", root / "test"] if (root / "train").is_dir() else [root]

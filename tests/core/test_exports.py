@@ -18,7 +18,7 @@ from calib_core.pipeline import calibrate
 from ..conftest import synthetic
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def cal_of(kind: str, method: str, settings: tuple = ()):
     return calibrate(synthetic(kind).train, method, **dict(settings))
 

@@ -106,7 +106,7 @@ def test_observations_round_trip(tmp_path):
     obs.save(tmp_path / "o.json")
     again = Observations.load(tmp_path / "o.json")
     assert again.image_size == obs.image_size and len(again.views) == len(obs.views)
-    for a, b in zip(again.views, obs.views):
+    for a, b in zip(again.views, obs.views, strict=True):
         assert a.name == b.name and np.array_equal(a.image_points, b.image_points) and np.array_equal(a.ids, b.ids)
 
 

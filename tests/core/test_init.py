@@ -3,13 +3,13 @@ import numpy as np
 import pytest
 
 from calib_core import calibrate
-from calib_core.models import camera
 from calib_core.board import BoardSpec
 from calib_core.detection.detect import detect_images
 from calib_core.fitting.init import folds_inside_image, initialise
+from calib_core.fitting.solve import Data
+from calib_core.models import camera
 from calib_core.models.fisheye import FisheyeModel
 from calib_core.pipeline import to_data
-from calib_core.fitting.solve import Data
 
 from ..conftest import shared_data
 from ..simulated_lenses import around

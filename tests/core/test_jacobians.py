@@ -2,11 +2,11 @@
 import numpy as np
 import pytest
 
-from calib_core.models import camera
-from calib_core.models.bspline_basis import BSplineField, clamped_knots
-from calib_core.models.bspline import BSplineModel
-from calib_core.models.fisheye import FisheyeModel
 from calib_core.fitting.solve import Data, SolveSettings, _assemble
+from calib_core.models import camera
+from calib_core.models.bspline import BSplineModel
+from calib_core.models.bspline_basis import BSplineField, clamped_knots
+from calib_core.models.fisheye import FisheyeModel
 
 
 def numeric(f, x, eps):

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from calib_core.fitting import knots
 from calib_core.errors import SettingsError
+from calib_core.fitting import knots
 
 
 def test_local_std_weights_are_high_where_the_response_varies():

@@ -88,8 +88,8 @@ def test_leaving_a_view_out_in_closed_form_agrees_with_refits(method, settings, 
     model, whose denominators curve), at a fraction of their cost."""
     from calib_core import synth
     from calib_core.fitting.crossval import linearised_view_errors
-    from calib_core.pipeline import to_data
     from calib_core.fitting.solve import SolveSettings, levenberg_marquardt, select_views
+    from calib_core.pipeline import to_data
 
     train = synth.generate("decentred", 0.3, 0, 10).train
     data, _, _ = to_data(train)
@@ -115,9 +115,9 @@ def test_a_field_over_a_core_is_scored_with_the_view_left_out_of_its_core_too():
     to every view scores lower than either."""
     from calib_core import synth
     from calib_core.fitting.crossval import linearised_view_errors
+    from calib_core.fitting.solve import SolveSettings, levenberg_marquardt, select_views
     from calib_core.methods.auto import _free, _held_steps
     from calib_core.pipeline import to_data
-    from calib_core.fitting.solve import SolveSettings, levenberg_marquardt, select_views
 
     train = synth.generate("fisheye", 0.3, 0, 10).train
     data, _, _ = to_data(train)

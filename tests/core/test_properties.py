@@ -19,9 +19,9 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from calib_core import Calibration, Observations
+from calib_core.errors import CalibError, FormatError, SettingsError
 from calib_core.fitting import knots
 from calib_core.models.bspline_basis import BSplineField, clamped_knots
-from calib_core.errors import CalibError, FormatError, SettingsError
 
 from ..conftest import synthetic
 

@@ -9,8 +9,8 @@ import pytest
 from scipy.ndimage import map_coordinates
 
 from calib_core.errors import SettingsError
-from calib_core.pipeline import calibrate
 from calib_core.evaluation.quality import geometric_quality, raw_quality
+from calib_core.pipeline import calibrate
 from calib_core.products.rectify import INVALID, fixed_camera, rectified_camera, rectify_image, undistort_maps
 from calib_core.synth.truth import truth_calibration
 
@@ -22,7 +22,7 @@ MODEL_TYPES = {("zhang", ()): "opencv", ("rational", ()): "opencv", ("fisheye", 
                ("bspline", ()): "bspline"}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def cal_of(kind: str, method: str, settings: tuple = ()):
     return calibrate(synthetic(kind).train, method, **dict(settings))
 

@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 from backend.cli import main as cli
-from calib_core.synth import render
 from calib_core import synth
-from calib_core.synth import protocol as synth_protocol
 from calib_core.board import BoardSpec
 from calib_core.detection.corner_error import corner_errors
 from calib_core.detection.detect_image import detect_gray
 from calib_core.observations import Observations
+from calib_core.synth import protocol as synth_protocol
+from calib_core.synth import render
 
 
 def test_pixel_rays_invert_the_true_lens():

@@ -2,9 +2,9 @@
 equals refitting it without each group, and it chooses what predicts."""
 import numpy as np
 
-from calib_core.models.bspline_basis import BSplineField, clamped_knots
-from calib_core.models.bspline import GAUGE_WEIGHT, gauge_rows
 from calib_core.fitting.smoothing import LAMBDA_GRID, cv_curve, groups_of
+from calib_core.models.bspline import GAUGE_WEIGHT, gauge_rows
+from calib_core.models.bspline_basis import BSplineField, clamped_knots
 
 
 def _problem(seed: int, n_views: int = 6, per_view: int = 60, intervals: int = 5):

@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 
 from calib_core import calibrate, synth
+from calib_core.evaluation.uncertainty import aligned_projection, projection_uncertainty
+from calib_core.fitting.solve import Data, SolveSettings, levenberg_marquardt
 from calib_core.models import camera
 from calib_core.pipeline import to_data
-from calib_core.fitting.solve import Data, SolveSettings, levenberg_marquardt
-from calib_core.evaluation.uncertainty import aligned_projection, projection_uncertainty
 
 
 @pytest.mark.parametrize("kind", ["radial", "asymmetric"])  # an exact parametric core; a lens none represents
@@ -43,8 +43,8 @@ def test_predicted_projection_spread_matches_noise_realisations(kind):
 
 
 def test_schur_complement_equals_the_model_block_of_the_full_covariance():
-    from calib_core.fitting.init import initialise
     from calib_core.evaluation.uncertainty import full_covariance, model_covariance
+    from calib_core.fitting.init import initialise
 
     train = synth.generate("fisheye", sigma=0.3, seed=0, n_views=4).train
     data, _, _ = to_data(train)

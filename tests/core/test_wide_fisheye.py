@@ -2,8 +2,8 @@
 corners): calibrate on train/, validate on test/ with a pose-only refit."""
 import pytest
 
-from calib_core.detection import babelcalib
 from calib_core import calibrate
+from calib_core.detection import babelcalib
 from calib_core.evaluation.evaluate import evaluate
 
 from ..conftest import shared_data

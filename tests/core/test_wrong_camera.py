@@ -4,10 +4,10 @@ import dataclasses
 
 import numpy as np
 
-from calib_core.methods.bspline import _restarted, wrong_camera
 from calib_core.fitting.init import initialise
-from calib_core.pipeline import calibrate, to_data
 from calib_core.fitting.solve import SolveSettings, levenberg_marquardt
+from calib_core.methods.bspline import _restarted, wrong_camera
+from calib_core.pipeline import calibrate, to_data
 
 from ..conftest import synthetic
 

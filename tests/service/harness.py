@@ -14,8 +14,9 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import httpx
 import pytest
@@ -37,7 +38,7 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def wait_for(check: Callable[[], Any], timeout: float, what: str, logs: list["Proc"] = (), every: float = 0.1) -> Any:
+def wait_for(check: Callable[[], Any], timeout: float, what: str, logs: list[Proc] = (), every: float = 0.1) -> Any:
     """Poll ``check`` until it returns something truthy; fail naming ``what`` (with log tails)."""
     deadline = time.monotonic() + timeout
     last_error = None
@@ -108,7 +109,7 @@ class Service:
         self.proc: Proc | None = None
         self.starts = 0
 
-    def start(self) -> "Service":
+    def start(self) -> Service:
         self.port = free_port()
         self.starts += 1
         self.proc = Proc(f"serve-{self.starts}", freecal("serve", "--port", str(self.port), "--data-dir",
@@ -126,7 +127,7 @@ class Service:
             self.client.close()
             self.proc.stop()
 
-    def restart(self) -> "Service":
+    def restart(self) -> Service:
         self.stop()
         return self.start()
 

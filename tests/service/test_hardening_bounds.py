@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 
 from ..conftest import synthetic
-from .test_hardening_inputs import BOARD, board_image, encode, png_header_only, still_works
 from .harness import FAST, QUICK, ROOT, Service, upload_observations, wait_job
+from .test_hardening_inputs import BOARD, board_image, encode, png_header_only, still_works
 
 pytestmark = pytest.mark.slow
 
@@ -385,17 +385,17 @@ def nested(depth: int) -> str:
 
 @pytest.mark.parametrize("depth", [33, 500, 900, 100_000])
 def test_deeply_nested_settings_are_refused(service, depth):
-    body = '{"set_id": "x", "method": "bspline", "settings": {"intervals": %s}}' % nested(depth)
+    body = f'{{"set_id": "x", "method": "bspline", "settings": {{"intervals": {nested(depth)}}}}}'
     r = service.client.post("/api/jobs", content=body, headers={"content-type": "application/json"})
     refused(service, r, 422, "more than 32 levels deep")
 
 
 def test_deeply_nested_uploads_are_refused(service):
-    r = service.client.post("/api/sets", files={"files": ("obs.json", '{"views": %s}' % nested(900))})
+    r = service.client.post("/api/sets", files={"files": ("obs.json", f'{{"views": {nested(900)}}}')})
     refused(service, r, 422, "more than 32 levels deep", "freecal.observations/1")
-    board = '{"type": "chessboard", "cols": %s}' % nested(900)
+    board = f'{{"type": "chessboard", "cols": {nested(900)}}}'
     refused(service, upload(service, "a.png", encode(board_image(0)), board=board), 422, "more than 32 levels deep")
-    r = service.client.post("/api/viewer", content='{"job_id": %s}' % nested(900),
+    r = service.client.post("/api/viewer", content=f'{{"job_id": {nested(900)}}}',
                             headers={"content-type": "application/json"})
     refused(service, r, 422, "more than 32 levels deep")
 

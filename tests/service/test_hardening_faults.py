@@ -28,9 +28,20 @@ from backend.app.repository import jobs as job_rows
 from backend.app.settings import Settings
 
 from ..conftest import synthetic
+from .harness import (
+    FAST,
+    QUICK,
+    Proc,
+    RedisServer,
+    Service,
+    create_job,
+    freecal,
+    start_worker,
+    upload_observations,
+    wait_for,
+    wait_job,
+)
 from .test_hardening_inputs import GOOD, still_works
-from .harness import (FAST, QUICK, Proc, RedisServer, Service, create_job, freecal,
-                                   start_worker, upload_observations, wait_for, wait_job)
 
 OBS = synthetic("radial").train.to_json()
 

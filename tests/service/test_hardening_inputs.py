@@ -231,7 +231,7 @@ def test_bad_settings_are_refused_with_advice(service, ready_set, case):
 
 def test_nan_setting_is_refused(service, ready_set):
     # httpx refuses to send NaN; a hostile client writes it by hand (Python's parser reads it)
-    body = '{"set_id": "%s", "settings": {"lambda_smooth": NaN}}' % ready_set
+    body = f'{{"set_id": "{ready_set}", "settings": {{"lambda_smooth": NaN}}}}'
     r = service.client.post("/api/jobs", content=body, headers={"content-type": "application/json"})
     refused(service, r, 422, "settings.lambda_smooth", "finite")
 
@@ -304,7 +304,7 @@ IMAGES = {  # name: (bytes, expected status, words in the reason)
     "good1.png": (encode(board_image(1)), "used", []),
     "good2.jpg": (encode(board_image(2), ".jpg"), "used", []),
     "good3.png": (encode(board_image(3)), "used", []),
-    "sixteen_bit.png": (encode((board_image(4).astype(np.uint16) * 257)), "used", []),
+    "sixteen_bit.png": (encode(board_image(4).astype(np.uint16) * 257), "used", []),
     "rgba.png": (encode(cv2.cvtColor(board_image(5), cv2.COLOR_GRAY2BGRA)), "used", []),
     "truncated.png": (truncated(encode(board_image(6))), "rejected", []),
     "truncated.jpg": (truncated(encode(board_image(7), ".jpg")), "rejected", []),

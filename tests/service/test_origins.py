@@ -162,8 +162,8 @@ def test_viser_port_takes_only_the_proxy(svc_name, request):
 
 
 def test_the_viewer_proxy_checks_the_websocket_origin(guarded):
-    from websockets.exceptions import InvalidStatus
     import viser
+    from websockets.exceptions import InvalidStatus
     from websockets.sync.client import connect
 
     url = f"ws://127.0.0.1:{guarded.port}/viewer?token={TOKEN}"

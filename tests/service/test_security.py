@@ -157,9 +157,8 @@ def test_a_token_keeps_the_3d_view_on_loopback(tmp_path):
     """viser cannot check the token: with one set, a public viewer host refuses to start."""
     from dataclasses import replace
 
-    from calib_core.errors import SettingsError
-
     from backend.app.security import check_viewer_exposure
+    from calib_core.errors import SettingsError
 
     base = Settings.from_env(env={}, data_dir=tmp_path)
     check_viewer_exposure(replace(base, token=TOKEN))                                   # loopback: fine

@@ -10,8 +10,7 @@ import pytest
 from calib_core import Calibration
 
 from ..conftest import shared_data, synthetic
-from .harness import (FAST, QUICK, SLOW, Service, create_job, start_worker, upload_observations,
-                                   wait_for, wait_job)
+from .harness import FAST, QUICK, SLOW, Service, create_job, start_worker, upload_observations, wait_for, wait_job
 
 pytestmark = pytest.mark.slow
 

@@ -8,8 +8,17 @@ import pytest
 from calib_core import Calibration
 
 from ..conftest import synthetic
-from .harness import (FAST, QUICK, RedisServer, Service, create_job, start_worker,
-                                   upload_observations, wait_for, wait_job)
+from .harness import (
+    FAST,
+    QUICK,
+    RedisServer,
+    Service,
+    create_job,
+    start_worker,
+    upload_observations,
+    wait_for,
+    wait_job,
+)
 
 pytestmark = pytest.mark.slow
 

@@ -13,8 +13,8 @@ from ..presenters import set_public
 from ..repository import jobs as job_rows
 from ..repository import sets as set_rows
 from ..schemas import Message, SetPublic, SetsPublic
-from ..services import sets as service
 from ..security import QuotaDep, client_of
+from ..services import sets as service
 from ..uploads import Upload
 
 router = APIRouter(prefix="/api/sets", tags=["sets"])

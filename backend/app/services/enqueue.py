@@ -2,7 +2,7 @@
 never sees a set or job that no worker will ever take."""
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from ...queue.tasks import Queue, QueueUnavailable
 from ..context import Context

@@ -32,6 +32,7 @@ def stereo_left() -> Observations:
     return Observations(size, views, {"type": "chessboard", "cols": cols, "rows": rows, "square_size": 25.0, "units": "mm"})
 
 
+@pytest.mark.slow
 def test_zhang_matches_cv2_calibrate_camera_on_the_same_corners():
     obs = stereo_left()
     assert len(obs.views) >= 10

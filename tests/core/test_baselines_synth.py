@@ -63,6 +63,7 @@ def test_new_lenses_give_sets_like_the_papers(kind):
     assert cells.min() > 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", NEW_KINDS)
 def test_no_radial_model_represents_the_new_lenses(kind):
     """The best textbook model's hold-out error is several times the paper's field's."""

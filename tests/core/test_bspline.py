@@ -41,6 +41,7 @@ def test_design_matrix_reproduces_the_field(field):
     assert np.allclose(b @ field.control.reshape(-1, 2), field(uv))
 
 
+@pytest.mark.slow
 def test_bending_energy_of_a_quadratic_is_grid_independent():
     energies = []
     for n in (6, 12, 24):

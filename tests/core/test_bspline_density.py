@@ -21,6 +21,7 @@ def searched():
     return auto_bandwidth()
 
 
+@pytest.mark.slow
 def test_auto_bandwidth_picks_a_factor_and_records_the_curve(searched):
     chosen = searched.settings["bandwidth_factor_used"]
     assert chosen in AUTO_BANDWIDTH_FACTORS
@@ -36,6 +37,7 @@ def test_auto_bandwidth_picks_a_factor_and_records_the_curve(searched):
     assert [searched.settings["intervals_used"], chosen] in [[c["intervals"], c["bandwidth_factor"]] for c in curve]
 
 
+@pytest.mark.slow
 def test_a_budget_that_is_not_reached_changes_nothing(searched):
     again = auto_bandwidth(time_budget=1e3)
     assert again.diagnostics["smoothing_curve"] == searched.diagnostics["smoothing_curve"]

@@ -25,6 +25,7 @@ def results():
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind, ratio", [("radial", 1.05), ("asymmetric", 1.05), ("fisheye", 1.5)])
 def test_training_error_is_at_the_noise_floor(results, kind, ratio):
     cal, _ = results[kind]
@@ -94,6 +95,7 @@ def test_paper_model_without_core_reaches_the_floor():
     assert evaluate(cal, s.holdout)["rmse"] < 0.2
 
 
+@pytest.mark.slow
 def test_a_field_that_cannot_follow_the_lens_says_so_and_the_default_can():
     """A wide lens on few views through the paper's pinhole base on a coarse
     grid: the field walks the camera to a wrong focal length (fx 224 for a
@@ -111,6 +113,7 @@ def test_a_field_that_cannot_follow_the_lens_says_so_and_the_default_can():
     assert calibrate(train, outlier_sigma=0).metrics["rmse"] < 0.05
 
 
+@pytest.mark.slow
 def test_a_large_set_decides_the_model_on_a_spread_of_views_and_fits_all():
     from calib_core import synth
     from calib_core.methods.auto import AutoSettings
@@ -140,6 +143,7 @@ def test_bad_settings_are_named(settings, message):
         calibrate(synthetic("radial").train, "bspline", **settings)
 
 
+@pytest.mark.slow
 def test_a_core_that_cannot_fit_the_corners_leaves_the_others_in_the_running(monkeypatch):
     """A lens too wide for OpenCV's 5 coefficients (here: made to fail) must not
     fail the default: that candidate drops out, the others compete."""

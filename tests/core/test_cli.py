@@ -1,6 +1,8 @@
 """The freecal command as a user runs it: synth → calibrate → evaluate."""
 import json
 
+import pytest
+
 from backend.cli import main
 
 
@@ -31,6 +33,7 @@ def test_user_errors_exit_2_with_one_line(tmp_path, capsys):
     assert "no such file" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_calibrate_summary_and_demo_say_which_model_was_chosen(tmp_path, capsys):
     """OpenCV's own lens: the summary names the model chosen in words and
     marks it in the score table; the demo names the choice per lens, the

@@ -24,6 +24,7 @@ def result(small):
     return compare(small.train, ["zhang", "fisheye", "mls"], splits=3, holdout=hold)
 
 
+@pytest.mark.slow
 def test_compare_json_contract(result):
     json.dumps(result, allow_nan=False)
     assert set(result["methods"]) == {"zhang", "fisheye", "mls"}
@@ -75,6 +76,7 @@ def test_cli_prints_one_json_object(tmp_path, small, capsys):
     assert "Verdict: zhang" in text and "Cross-validation" in text
 
 
+@pytest.mark.slow
 def test_on_opencvs_own_lens_the_default_and_the_verdict_both_name_zhang(small):
     """The radial lens is OpenCV's model: a field can only fit noise. The
     default (auto) returns OpenCV's model, and compare's verdict, by the same

@@ -5,6 +5,7 @@ import functools
 import json
 
 import numpy as np
+import pytest
 from scipy.spatial import cKDTree
 
 from calib_core.board import BoardSpec
@@ -36,6 +37,7 @@ def test_opencv_stereo_9x6():
     assert doc["board"] == {"type": "chessboard", "cols": 9, "rows": 6, "square_size": 1.0, "units": "mm"}
 
 
+@pytest.mark.slow
 def test_gopro_wide_all_24_with_partial_boards():
     det = _detect("gopro-hero3-wide-15x9", "chessboard:15x9:26mm")
     used = _used(det)
@@ -68,6 +70,7 @@ def _babel_reference(root, name):
     return ref[:, 3:5], dsc[ref[:, 1].astype(int), 1:3]
 
 
+@pytest.mark.slow
 def test_babelcalib_fisheye_partial_boards_match_reference():
     root = shared_data("babelcalib-ov-plane-fisheye")
     det = _detect("babelcalib-ov-plane-fisheye", "chessboard:22x22:7.5mm")

@@ -48,6 +48,7 @@ def test_parametric_calibration_exports_exactly():
     assert opencv_yaml(cal_of("asymmetric", "bspline")) is None  # not parametric: use a lean fit
 
 
+@pytest.mark.slow
 def test_the_default_on_opencvs_lens_exports_its_model_exactly():
     """On OpenCV's own lens the default keeps OpenCV's model, as that model:
     its YAML is that model, exactly."""

@@ -35,6 +35,7 @@ def test_a_kannala_brandt_camera_that_folds_inside_the_image_is_detected(coeffic
     assert folds_inside_image(model, np.zeros((1, 6)), rays_up_to(seen), size) is folds
 
 
+@pytest.mark.slow
 def test_a_narrow_real_set_gets_an_initial_camera_without_a_fold():
     """OpenCV's ChArUco sample (5 views, 110 corners, 22° off axis at most): all four
     Kannala–Brandt coefficients free folded the lens inside the image, and the

@@ -18,6 +18,7 @@ def candidate(cal, name: str) -> dict:
     return next(c for c in cal.diagnostics["model_choice"]["candidates"] if c["name"] == name)
 
 
+@pytest.mark.slow
 def test_a_kannala_brandt_fisheye_gets_kannala_brandt_not_a_model_that_only_fits_its_corners():
     """cv2.fisheye's lens: the rational model fits the corners as well but,
     as its own method calibrates it, misses new views by most of a pixel; the
@@ -43,6 +44,7 @@ def test_past_180_degrees_a_kannala_brandt_lens_gets_no_field_it_does_not_need()
     assert rmse(validation_residuals(cal, holdout)[0]) < 0.05
 
 
+@pytest.mark.slow
 def test_a_bowed_board_is_not_mistaken_for_lens_distortion():
     """A board bowed by half a millimetre or so, differently in each view: a
     field fits the bow of the views it has seen (a lower training error than
@@ -81,6 +83,7 @@ def test_the_simplest_candidate_within_the_noise_of_the_best_is_chosen(errors, c
     ("zhang", {}, 0.01), ("fisheye", {}, 0.01), ("rational", {}, 0.05),
     ("bspline", {"intervals": 6}, 0.01), ("bspline", {"intervals": 12}, 0.01), ("bspline", {"core": "rational"}, 0.01),
 ])
+@pytest.mark.slow
 def test_leaving_a_view_out_in_closed_form_agrees_with_refits(method, settings, tolerance):
     """One Gauss-Newton step from the full fit stands in for refitting the
     model without each view (then only the view's pose refit): the
@@ -107,6 +110,7 @@ def test_leaving_a_view_out_in_closed_form_agrees_with_refits(method, settings, 
     assert closed.sum() == pytest.approx(refits.sum(), rel=tolerance)
 
 
+@pytest.mark.slow
 def test_a_field_over_a_core_is_scored_with_the_view_left_out_of_its_core_too():
     """A field over Kannala-Brandt holds the core's coefficients where the
     core's own fit put them. Leaving a view out of both stages in closed form

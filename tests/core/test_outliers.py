@@ -24,6 +24,7 @@ def sets(kind: str):
 
 # Each method on a lens it represents: elsewhere its misfit is structured,
 # and the robust test rightly flags the corners it cannot fit.
+@pytest.mark.slow
 @pytest.mark.parametrize("method, kind", [("bspline", "asymmetric"), ("rational", "radial")])
 def test_slipped_corners_are_rejected_and_cost_nothing(method, kind):
     clean, slipped = sets(kind)

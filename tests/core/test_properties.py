@@ -87,6 +87,7 @@ def _parses_or_format_error(reader, doc) -> None:
         assert str(exc), "a FormatError must say what is wrong"
 
 
+@pytest.mark.slow
 @FAST
 @given(json_values)
 def test_observations_reader_takes_any_json_value(doc):
@@ -138,6 +139,7 @@ clouds = arrays(np.float64, st.tuples(st.integers(1, 300), st.just(2)),
 strategies = st.sampled_from(["kde", "kde-paper", "uniform"])
 
 
+@pytest.mark.slow
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(clouds, strategies, st.integers(-2, 20), st.integers(-2, 20), st.floats(0.0, 1.0), st.integers(0, 3))
 @example(np.array([[1.0, 1.0]]), "kde", 1, 1, 0.9999999999999999, 0)  # a corner 1e-13 from the domain's end
@@ -169,6 +171,7 @@ def test_any_point_cloud_gives_a_full_rank_design_or_a_settings_error(unit, stra
     assert np.all(np.isfinite(design)) and np.allclose(design.sum(axis=1), 1.0)  # partition of unity
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @given(st.sampled_from(["kde", "kde-paper"]), clouds)
 def test_adaptive_knots_leave_no_observed_cell_empty(strategy, unit):

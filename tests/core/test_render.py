@@ -49,6 +49,7 @@ def test_newton_inverts_the_new_lenses_over_the_whole_image(kind):
     back = synth.true_project(kind, np.concatenate([rays[vv, uu].reshape(-1, 2), np.ones((vv.size, 1))], 1))
     np.testing.assert_allclose(back, np.stack([uu.ravel(), vv.ravel()], 1), rtol=0, atol=1e-7)
 
+@pytest.mark.slow
 def test_rendered_images_detect_within_a_tenth_of_a_pixel(tmp_path, capsys):
     assert cli(["synth", "--kind", "fisheye", "--views", "2", "--images", "-o", str(tmp_path)]) == 0
     assert sorted(p.name for p in (tmp_path / "images").iterdir()) == ["train_00.png", "train_01.png"]
@@ -65,6 +66,7 @@ def test_rendered_images_detect_within_a_tenth_of_a_pixel(tmp_path, capsys):
     assert err["min_lattice_agreement"] >= 0.95  # partial-grid ids: one lattice motion of the truth's (1.0 today)
 
 
+@pytest.mark.slow
 def test_whole_board_views_get_the_true_ids_and_corners():
     """A 9x6 board seen whole: ids are absolute, so each corner is checked against its own truth."""
     board = BoardSpec.parse("chessboard:9x6:50mm")

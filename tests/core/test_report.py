@@ -6,6 +6,7 @@ import json
 
 import cv2
 import numpy as np
+import pytest
 
 from backend.cli import main as cli
 from calib_core import calibrate
@@ -14,6 +15,7 @@ from calib_core.report import tables
 from ..conftest import synthetic
 
 
+@pytest.mark.slow
 def test_the_report_holds_the_pages_products_and_their_figures(tmp_path):
     s = synthetic("decentred")
     obs_path = tmp_path / "train.json"

@@ -1,6 +1,7 @@
 """The closed-form grouped cross-validation of the control-point problem
 equals refitting it without each group, and it chooses what predicts."""
 import numpy as np
+import pytest
 
 from calib_core.fitting.smoothing import LAMBDA_GRID, cv_curve, groups_of
 from calib_core.models.bspline import GAUGE_WEIGHT, gauge_rows
@@ -43,6 +44,7 @@ def _refit_sse(field, b, weights, gauge, response, groups, ridge, lam):
     return sse
 
 
+@pytest.mark.slow
 def test_closed_form_equals_explicit_refits():
     for seed in range(3):
         field, b, weights, gauge, response, view = _problem(seed)

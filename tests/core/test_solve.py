@@ -2,6 +2,8 @@
 minimum as plain damped steps, in fewer iterations, on the paper's model."""
 import dataclasses
 
+import pytest
+
 import calib_core.methods.bspline as bspline_method
 from calib_core import calibrate
 from calib_core.evaluation.evaluate import evaluate
@@ -32,6 +34,7 @@ def test_gauss_newton_trials_reach_the_damped_minimum_in_fewer_iterations(monkey
     assert abs(held[0] - held[1]) < 0.01, held
 
 
+@pytest.mark.slow
 def test_a_large_set_takes_as_few_iterations_as_a_small_one():
     # The regularisers' weight is fixed while JᵀJ grows with the corners: the
     # valley they hold gets relatively flatter and curved, where straight

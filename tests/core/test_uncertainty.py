@@ -9,6 +9,7 @@ from calib_core.models import camera
 from calib_core.pipeline import to_data
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["radial", "asymmetric"])  # an exact parametric core; a lens none represents
 def test_predicted_projection_spread_matches_noise_realisations(kind):
     sigma, rng = 0.3, np.random.default_rng(1)

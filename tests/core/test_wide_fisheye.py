@@ -23,6 +23,7 @@ def test_reader_matches_the_published_geometry(sets):
     assert pts[:, 2].max() == 0 and 0 < pts[:, 0].max() <= 22 * 7.5 + 1e-9
 
 
+@pytest.mark.slow
 def test_the_default_beats_kannala_brandt_on_held_out_views(sets):
     train, test = sets
     kb = evaluate(calibrate(train, "fisheye"), test)

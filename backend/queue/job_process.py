@@ -167,7 +167,9 @@ def _context():
 
 def _main(settings: Settings, job_id: str, attempt: int) -> None:
     """The job process: die with the fork server, the worker's logging and thread limits, then the job."""
-    _die_with_parent()
+    from calib_core.lifetime import die_with_parent
+
+    die_with_parent()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
     if settings.blas_threads > 0:
         from threadpoolctl import threadpool_limits
@@ -177,12 +179,3 @@ def _main(settings: Settings, job_id: str, attempt: int) -> None:
 
     run_claimed(Context.open(settings), job_id, attempt)
 
-
-def _die_with_parent() -> None:
-    """Linux: the kernel SIGKILLs this process when its parent (the fork server) ends."""
-    try:
-        import ctypes
-
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass  # not Linux: stop_all() and the lease still cover a stopped worker

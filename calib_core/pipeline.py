@@ -12,7 +12,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 from threadpoolctl import threadpool_limits
 
-from . import metrics
+from . import metrics, view_set
 from .calibration import Calibration, ViewResult
 from .errors import DataError, SettingsError
 from .methods import METHODS
@@ -87,10 +87,12 @@ def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Cal
     progress = progress or no_progress
     t0 = time.perf_counter()
     obs, dropped = usable_views(observations)
+    view_set.check_views(obs)  # duplicates, all face-on: fail before the solver, saying what to shoot
     data, names, local = to_data(obs)
 
     fit = fit_fn(data, obs.image_size, s, progress)
     res = fit.result
+    view_set.check_fitted_tilts(res.poses[:, :3], planar=bool(np.all(data.object_points[:, 2] == 0)))
     used = ~fit.excluded
     outlier = np.zeros(data.n_points, dtype=bool)
     solve_settings = fit.solve_settings or SolveSettings(getattr(s, "max_iterations", 500), getattr(s, "ftol", 1e-6))

@@ -33,12 +33,12 @@ def _camera(cal: Calibration):
     return fixed_camera(0.5 * (fx + fy), tuple(cal.image_size))
 
 
-def preview(job_dir: Path, image: Path) -> Path | None:
+def preview(job_dir: Path, image: Path) -> bytes | None:
     """A JPEG of ``image`` rectified by the job's calibration (cached), or None
     if the image cannot be read."""
     out = job_dir / "rectified" / f"{image.name}.jpg"
     if out.exists():
-        return out
+        return out.read_bytes()
     photo = cv2.imread(str(image), cv2.IMREAD_COLOR) if image.is_file() else None
     if photo is None:
         return None
@@ -50,8 +50,7 @@ def preview(job_dir: Path, image: Path) -> Path | None:
     ok, buf = cv2.imencode(".jpg", rectified, [cv2.IMWRITE_JPEG_QUALITY, 85])
     if not ok:
         return None
-    storage.write_bytes(out, buf.tobytes())  # atomic: a reader never sees half a file
-    return out
+    return storage.write_cache(out, buf.tobytes())  # atomic: a reader never sees half a file
 
 
 def maps_npz(job_dir: Path) -> bytes:

@@ -13,8 +13,8 @@ from . import storage
 SIZES = (160, 640)   # longest side in pixels: list thumbnails, and images to draw residuals on
 
 
-def thumbnail(images_dir: Path, cache_dir: Path, name: str, size: int) -> Path | None:
-    """The preview's path, or None when the image is missing or unreadable."""
+def thumbnail(images_dir: Path, cache_dir: Path, name: str, size: int) -> bytes | None:
+    """The preview (JPEG bytes), or None when the image is missing or unreadable."""
     import cv2
 
     src = images_dir / storage.safe_name(name)
@@ -22,7 +22,7 @@ def thumbnail(images_dir: Path, cache_dir: Path, name: str, size: int) -> Path |
         return None
     out = cache_dir / str(size) / (src.name + ".jpg")
     if out.is_file() and out.stat().st_mtime >= src.stat().st_mtime:
-        return out
+        return out.read_bytes()
     img = cv2.imread(str(src), cv2.IMREAD_COLOR)
     if img is None:
         return None
@@ -33,5 +33,4 @@ def thumbnail(images_dir: Path, cache_dir: Path, name: str, size: int) -> Path |
     ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 82])
     if not ok:
         return None
-    storage.write_bytes(out, buf.tobytes())
-    return out
+    return storage.write_cache(out, buf.tobytes())

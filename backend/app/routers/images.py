@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from fastapi import APIRouter
-from fastapi.responses import FileResponse
+from fastapi.responses import Response
 from starlette.concurrency import run_in_threadpool
 
 from ..deps import ContextDep
@@ -14,17 +14,17 @@ from ..thumbnails import SIZES, thumbnail
 router = APIRouter(prefix="/api/sets", tags=["sets"])
 
 
-@router.get("/{set_id}/images/{name}/thumbnail", response_class=FileResponse,
-            responses={404: {"model": Message}, 422: {"model": Message}})
-async def read_thumbnail(ctx: ContextDep, set_id: str, name: str, size: int = SIZES[0]) -> FileResponse:
+@router.get("/{set_id}/images/{name}/thumbnail", response_class=Response,
+            responses={200: {"content": {"image/jpeg": {}}}, 404: {"model": Message}, 422: {"model": Message}})
+async def read_thumbnail(ctx: ContextDep, set_id: str, name: str, size: int = SIZES[0]) -> Response:
     """The image scaled down to ``size`` pixels on its longest side (160 or 640), JPEG, cached."""
     if size not in SIZES:
         raise ApiError(422, f"size must be one of {', '.join(map(str, SIZES))} (pixels on the longest side)")
     row = service.get(ctx, set_id)
     if name not in {im["name"] for im in row.get("images") or []}:
         raise ApiError(404, f"set {set_id} has no image {name!r}")
-    path = await run_in_threadpool(thumbnail, ctx.storage.images_dir(set_id), ctx.storage.set_dir(set_id) / "thumbs",
+    jpeg = await run_in_threadpool(thumbnail, ctx.storage.images_dir(set_id), ctx.storage.set_dir(set_id) / "thumbs",
                                    name, size)
-    if path is None:
+    if jpeg is None:
         raise ApiError(404, f"image {name!r} of set {set_id} cannot be read")
-    return FileResponse(path, media_type="image/jpeg", headers={"Cache-Control": "max-age=3600"})
+    return Response(jpeg, media_type="image/jpeg", headers={"Cache-Control": "max-age=3600"})

@@ -23,18 +23,18 @@ def assess(ctx: Context, queue: Queue) -> Health:
     counts = jobs.count_by_state(ctx.db)
     queue_problem = queue.problem()
     storage_problem = storage_condition(ctx)
-    problems = []
+    problems = [storage_problem] if storage_problem else []
     if len(live) < s.workers:
         problems.append(f"{len(live)} of the {s.workers} worker(s) the service should have (FREECAL_WORKERS) "
-                        "are alive: queued jobs wait; `freecal serve` starts dead workers again within seconds, "
-                        "otherwise start one with `freecal worker`")
+                        "are alive: queued jobs wait; " + (
+                            "workers cannot record that they are alive while the data directory takes no writes"
+                            if storage_problem else "`freecal serve` starts dead workers again within seconds, "
+                            "otherwise start one with `freecal worker`"))
     stuck = stuck_jobs(ctx)
     if stuck:
         problems.append(stuck)
     if queue_problem is not None:
         problems.append(queue_error(ctx, queue_problem))
-    if storage_problem is not None:
-        problems.append(storage_problem)
     return Health(status="degraded" if problems else "ok", problems=problems, version=VERSION, queue=s.queue,
                   workers=len(live), workers_expected=s.workers, jobs=counts, storage_writable=storage_problem is None,
                   queue_available=queue_problem is None,

@@ -170,6 +170,7 @@ def _main(settings: Settings, job_id: str, attempt: int) -> None:
     from calib_core.lifetime import die_with_parent
 
     die_with_parent()
+    _run_as_batch()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
     if settings.blas_threads > 0:
         from threadpoolctl import threadpool_limits
@@ -179,3 +180,13 @@ def _main(settings: Settings, job_id: str, attempt: int) -> None:
 
     run_claimed(Context.open(settings), job_id, attempt)
 
+
+
+def _run_as_batch() -> None:
+    """Linux: SCHED_BATCH, on top of the worker's niceness (inherited). The scheduler then takes the job for
+    the CPU-bound work it is and never lets it preempt an API thread that wakes for a request, so status
+    reads stay fast on a machine whose cores the job fills (a detection's pool inherits it)."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
+    except (AttributeError, OSError):
+        pass

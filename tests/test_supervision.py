@@ -22,6 +22,10 @@ from .test_service_harness import FAST, SLOW, Service, create_job, upload_observ
 pytestmark = pytest.mark.slow
 
 OBS = synthetic("radial").train.to_json()
+# FAST heartbeats, but a lease long enough that a loaded 2-core machine never makes a live run look
+# dead (a new worker's first job waits for its fork server to import the job code): only the kills
+# here end runs
+ENV = {**FAST, "FREECAL_LEASE_SECONDS": "10", "FREECAL_VIEWER": "0"}
 
 HOOK = '''
 import ctypes, importlib.util, os, sys
@@ -98,7 +102,7 @@ def healthy_again(svc: Service, workers: int = 1) -> dict:
 
 @pytest.fixture
 def service(tmp_path):
-    svc = Service(tmp_path / "data", tmp_path, {**FAST, "FREECAL_VIEWER": "0"}).start()
+    svc = Service(tmp_path / "data", tmp_path, ENV).start()
     yield svc
     svc.stop()
 
@@ -147,7 +151,7 @@ def parent(pid: int) -> int | None:
 def test_server_killed_alone_takes_its_workers_and_jobs_with_it(tmp_path):
     """SIGKILL of the `freecal serve` process only (not its group): the kernel ends its worker and the
     worker's job process; started again, the job runs again and is done."""
-    svc = Service(tmp_path / "data", tmp_path, {**FAST, "FREECAL_VIEWER": "0"}).start()
+    svc = Service(tmp_path / "data", tmp_path, ENV).start()
     try:
         c = svc.client
         set_id = upload_observations(c, OBS)
@@ -173,10 +177,7 @@ def test_worker_killed_during_a_stuck_detection_leaves_nothing_running(tmp_path)
     hook.mkdir()
     (hook / "sitecustomize.py").write_text(HOOK)
     path = os.pathsep.join(p for p in (str(hook), os.environ.get("PYTHONPATH", "")) if p)
-    # a longer lease than FAST: several processes start at once here, and a loaded machine must not
-    # make the first run look dead before the test kills its worker
-    env = {**FAST, "FREECAL_LEASE_SECONDS": "10", "FREECAL_VIEWER": "0", "PYTHONPATH": path,
-           "FREECAL_TEST_HANG_DIR": str(tmp_path)}
+    env = {**ENV, "PYTHONPATH": path, "FREECAL_TEST_HANG_DIR": str(tmp_path)}
     svc = Service(tmp_path / "data", tmp_path, env).start()
     try:
         c = svc.client
@@ -198,6 +199,30 @@ def test_worker_killed_during_a_stuck_detection_leaves_nothing_running(tmp_path)
         s = wait_for(lambda: (lambda s: s if s["state"] in ("ready", "failed") else None)(
             c.get(f"/api/sets/{set_id}").json()), 120, "the detection to run again", svc.logs())
         assert s["state"] == "ready", (s["error"], s["images"])
+        healthy_again(svc)
+    finally:
+        svc.stop()
+
+
+def test_stuck_detection_is_stopped_at_the_time_limit(tmp_path):
+    """Detections have the time limit too: the job process and its pool are killed, the set fails saying so."""
+    hook = tmp_path / "hook"
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text(HOOK)
+    path = os.pathsep.join(p for p in (str(hook), os.environ.get("PYTHONPATH", "")) if p)
+    env = {**ENV, "FREECAL_JOB_TIMEOUT": "5", "PYTHONPATH": path, "FREECAL_TEST_HANG_DIR": str(tmp_path)}
+    svc = Service(tmp_path / "data", tmp_path, env).start()
+    try:
+        c = svc.client
+        r = c.post("/api/sets", data={"board": "chessboard:6x4:20mm"},
+                   files=[("files", (f"{k}.png", GOOD)) for k in range(3)])
+        set_id = r.json()["id"]
+        stuck = wait_for(lambda: [int(p.read_text()) for p in tmp_path.glob("pool-*.pid")], 60,
+                         "the detection to hang in its pool", svc.logs())
+        s = wait_for(lambda: (lambda s: s if s["state"] in ("ready", "failed") else None)(
+            c.get(f"/api/sets/{set_id}").json()), 60, "the detection to be stopped", svc.logs())
+        assert s["state"] == "failed" and "exceeded the 5 s time limit" in s["error"], s
+        wait_for(lambda: all(gone(p) for p in stuck), 30, f"the stuck pool processes {stuck} to end", svc.logs())
         healthy_again(svc)
     finally:
         svc.stop()

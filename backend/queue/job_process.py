@@ -16,7 +16,9 @@ lease from outside (``supervise``), every ``FREECAL_HEARTBEAT_SECONDS``:
 Job processes come from a fork server (a fresh interpreter that imported the
 job code once): a job starts in milliseconds and never inherits the worker's
 threads or locks. On Linux a job process also dies with the fork server, which
-ends with its worker, so a worker killed outright leaves no job running alone.
+ends with its worker, so a worker killed outright leaves no job running alone
+(``calib_core.lifetime``). A job process runs in a session of its own, as batch
+work (``_yield_to_the_api``), so the API answers fast while it runs.
 """
 from __future__ import annotations
 
@@ -93,11 +95,18 @@ def _end(proc: mp.process.BaseProcess) -> None:
 
 
 def prepare() -> None:
-    """Start the fork server now (it imports the job code: about a second) rather than in the first job's time."""
-    if _context().get_start_method() == "forkserver":
-        from multiprocessing import forkserver
+    """Start the fork server now and wait until it has imported the job code (a second, more on a busy
+    machine), rather than in the first job's time: a job's process start waits for it, and no heartbeat
+    is written meanwhile, so a slow first start could cost the job its lease."""
+    ctx = _context()
+    if ctx.get_start_method() == "forkserver":
+        ready = ctx.Process(target=_ready, name="fork-server-ready")
+        ready.start()  # returns once the fork server serves processes
+        ready.join()
 
-        forkserver.ensure_running()
+
+def _ready() -> None:
+    """A process that does nothing: starting one proves the fork server is serving."""
 
 
 def stop_all() -> None:
@@ -170,7 +179,7 @@ def _main(settings: Settings, job_id: str, attempt: int) -> None:
     from calib_core.lifetime import die_with_parent
 
     die_with_parent()
-    _yield_to_the_api(settings.worker_nice)
+    _yield_to_the_api()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
     if settings.blas_threads > 0:
         from threadpoolctl import threadpool_limits
@@ -181,24 +190,21 @@ def _main(settings: Settings, job_id: str, attempt: int) -> None:
     run_claimed(Context.open(settings), job_id, attempt)
 
 
-
-def _yield_to_the_api(niceness: int) -> None:
-    """Linux: the job takes CPU only when the API does not want it.
+def _yield_to_the_api() -> None:
+    """Linux: the job never delays the API's answers.
 
     - a session of its own: with autogroup scheduling (the default on desktops and many servers), CPU is
       shared fairly between sessions first and by niceness only inside one; in the API's session, a job
       spent the session's share and the API then waited behind other sessions at every request (status
-      reads p99 1-2 s with a job running, 20 ms without). Its own session's group gets the niceness too;
+      reads p99 1-2 s with a job running, 20 ms without). In a session of its own it gets a session's
+      fair share, as it did inside the API's (its group is not niced: jobs would crawl behind everyone
+      else's work on a shared machine);
     - SCHED_BATCH: the scheduler never lets the job preempt a thread that wakes for a request.
-    A detection's pool inherits all of it. The job still ends with its worker (die_with_parent)."""
+    A detection's pool inherits both. The job still ends with its worker (die_with_parent)."""
     try:
         os.setsid()
     except OSError:
         pass
-    try:
-        Path("/proc/self/autogroup").write_text(str(niceness))
-    except OSError:
-        pass  # no autogroups here: niceness alone orders the job after the API
     try:
         os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
     except (AttributeError, OSError):

@@ -17,8 +17,9 @@ Job processes come from a fork server (a fresh interpreter that imported the
 job code once): a job starts in milliseconds and never inherits the worker's
 threads or locks. On Linux a job process also dies with the fork server, which
 ends with its worker, so a worker killed outright leaves no job running alone
-(``calib_core.lifetime``). A job process runs in a session of its own, as batch
-work (``_yield_to_the_api``), so the API answers fast while it runs.
+(``calib_core.lifetime``). A job process runs in a session of its own at the
+workers' niceness, as batch work (``_yield_to_the_api``), so the API answers fast
+while it runs.
 """
 from __future__ import annotations
 
@@ -179,7 +180,7 @@ def _main(settings: Settings, job_id: str, attempt: int) -> None:
     from calib_core.lifetime import die_with_parent
 
     die_with_parent()
-    _yield_to_the_api()
+    _yield_to_the_api(settings.worker_nice)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
     if settings.blas_threads > 0:
         from threadpoolctl import threadpool_limits
@@ -190,21 +191,25 @@ def _main(settings: Settings, job_id: str, attempt: int) -> None:
     run_claimed(Context.open(settings), job_id, attempt)
 
 
-def _yield_to_the_api() -> None:
-    """Linux: the job never delays the API's answers.
+def _yield_to_the_api(niceness: int) -> None:
+    """Linux: the job takes the CPU only when the API (and other work) does not want it.
 
-    - a session of its own: with autogroup scheduling (the default on desktops and many servers), CPU is
-      shared fairly between sessions first and by niceness only inside one; in the API's session, a job
-      spent the session's share and the API then waited behind other sessions at every request (status
-      reads p99 1-2 s with a job running, 20 ms without). In a session of its own it gets a session's
-      fair share, as it did inside the API's (its group is not niced: jobs would crawl behind everyone
-      else's work on a shared machine);
+    - a session of its own, its group niced: with autogroup scheduling (the default on desktops and many
+      servers) CPU is shared fairly between sessions first and by niceness only inside one. In the API's
+      session a job spent the session's share, and the API then waited behind other sessions at every
+      request (status reads p99 1.2-2.4 s with a job running, 20-110 ms without); in its own session
+      at nice 0 it still took a session's full share (p99 1.5 s). Its own group at FREECAL_WORKER_NICE
+      gives the niceness its classic meaning: jobs yield to everything else on the machine;
     - SCHED_BATCH: the scheduler never lets the job preempt a thread that wakes for a request.
-    A detection's pool inherits both. The job still ends with its worker (die_with_parent)."""
+    A detection's pool inherits all of it. The job still ends with its worker (die_with_parent)."""
     try:
         os.setsid()
     except OSError:
         pass
+    try:
+        Path("/proc/self/autogroup").write_text(str(niceness))
+    except OSError:
+        pass  # no autogroups here: the process's own niceness (from its worker) orders it
     try:
         os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
     except (AttributeError, OSError):

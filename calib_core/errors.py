@@ -13,5 +13,9 @@ class DataError(CalibError):
     """The data cannot support the requested calibration (too few views, points...)."""
 
 
+class DegenerateViews(DataError):
+    """The views cannot determine the camera (duplicates, one pose, no tilt): says what to shoot."""
+
+
 class SettingsError(CalibError):
     """A setting is out of range or unknown."""

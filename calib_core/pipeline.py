@@ -15,7 +15,7 @@ from threadpoolctl import threadpool_limits
 from . import ranges
 from .calibration import Calibration, ViewResult
 from .errors import DataError, SettingsError
-from .fitting import metrics
+from .fitting import metrics, view_set
 from .fitting.solve import Data, SolveSettings, levenberg_marquardt
 from .methods import METHODS
 from .methods.common import Progress, no_progress, settings_from
@@ -94,10 +94,12 @@ def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Cal
     progress = progress or no_progress
     t0 = time.perf_counter()
     obs, dropped = usable_views(observations)
+    view_set.check_views(obs)  # duplicates, all face-on: fail before the solver, saying what to shoot
     data, names, local = to_data(obs)
 
     fit = fit_fn(data, obs.image_size, s, progress)
     res = fit.result
+    view_set.check_fitted_tilts(res.poses[:, :3], planar=bool(np.all(data.object_points[:, 2] == 0)))
     used = ~fit.excluded
     outlier = np.zeros(data.n_points, dtype=bool)
     solve_settings = fit.solve_settings or SolveSettings(getattr(s, "max_iterations", 500), getattr(s, "ftol", 1e-6))

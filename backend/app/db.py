@@ -86,7 +86,10 @@ class Database:
         # closes, so with a connection per unit of work a status read could pay for a checkpoint
         # (an fsync of the database, seconds on a busy disk). With this one open, checkpoints
         # happen only inside writers' commits, and reads stay cheap.
+        # It reads once, so that it has the WAL open: that also keeps the -shm file that readers need when
+        # the data directory turns read-only (SQLite cannot create it then, and every read would fail).
         self._keeper = sqlite3.connect(self.path, check_same_thread=False)
+        self._keeper.execute("SELECT 1 FROM sqlite_master LIMIT 1").fetchall()
 
     @contextmanager
     def connect(self) -> Iterator[sqlite3.Connection]:

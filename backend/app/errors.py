@@ -7,7 +7,6 @@ and is logged with its traceback on the server.
 """
 from __future__ import annotations
 
-import errno
 import logging
 import sqlite3
 
@@ -16,6 +15,8 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from calib_core.errors import CalibError
+
+from . import storage
 
 log = logging.getLogger("freecal.api")
 
@@ -39,9 +40,9 @@ READ_ONLY = "the server cannot write its data directory (read-only or no permiss
 def storage_failure(exc: BaseException) -> tuple[int, str] | None:
     """(status, message) when ``exc`` means the data directory cannot take writes, else None."""
     if isinstance(exc, OSError):
-        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        if exc.errno in storage.NO_SPACE:
             return 507, DISK_FULL
-        if exc.errno in (errno.EROFS, errno.EACCES, errno.EPERM):
+        if exc.errno in storage.READ_ONLY:
             return 503, READ_ONLY
     if isinstance(exc, sqlite3.OperationalError):
         text = str(exc).lower()

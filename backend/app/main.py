@@ -14,7 +14,7 @@ from contextlib import asynccontextmanager
 
 from fastapi import FastAPI
 
-from ..queue.recovery import Periodic, recover_stale, requeue_pending
+from ..queue.recovery import Periodic, recover_stale, requeue_pending, resend_stuck
 from ..queue.tasks import QueueUnavailable, build_queue
 from . import allow, errors, frontend
 from .context import Context
@@ -47,7 +47,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             recover_stale(ctx, queue)
         except QueueUnavailable as exc:  # serve anyway: reads work, and recovery runs again periodically
             log.warning("the queue is unavailable at start-up: %s", exc)
-        reaper = Periodic(settings.heartbeat_seconds, lambda: recover_stale(ctx, queue), "recovery")
+        sent: dict[str, float] = {}
+
+        def recover() -> None:
+            recover_stale(ctx, queue)
+            resend_stuck(ctx, queue, sent)
+
+        reaper = Periodic(settings.heartbeat_seconds, recover, "recovery")
         reaper.start()
         app.state.viewer = start_viewer(ctx) if settings.viewer else None
         try:

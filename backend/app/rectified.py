@@ -35,12 +35,12 @@ def _camera(cal: Calibration):
     return fixed_camera(0.5 * (fx + fy), tuple(cal.image_size))
 
 
-def preview(job_dir: Path, image: Path, max_pixels: int) -> Path | None:
+def preview(job_dir: Path, image: Path, max_pixels: int) -> bytes | None:
     """A JPEG of ``image`` rectified by the job's calibration (cached), or None
     if the image cannot be read (ApiError 413 when it has more than ``max_pixels``)."""
     out = job_dir / "rectified" / f"{image.name}.jpg"
     if out.exists():
-        return out
+        return out.read_bytes()
     if not image.is_file():
         return None
     check_decodable(image, image.name, max_pixels)  # the API never decodes past the limit (thumbnails.py)
@@ -55,8 +55,7 @@ def preview(job_dir: Path, image: Path, max_pixels: int) -> Path | None:
     ok, buf = cv2.imencode(".jpg", rectified, [cv2.IMWRITE_JPEG_QUALITY, 85])
     if not ok:
         return None
-    storage.write_bytes(out, buf.tobytes())  # atomic: a reader never sees half a file
-    return out
+    return storage.write_cache(out, buf.tobytes())  # atomic: a reader never sees half a file
 
 
 def maps_npz(job_dir: Path) -> Path:

@@ -111,10 +111,15 @@ class MethodsPublic(BaseModel):
 
 
 class Health(BaseModel):
-    status: Literal["ok"]
+    status: Literal["ok", "degraded"] = Field(description="degraded: the service answers, but something in "
+                                                          "`problems` keeps jobs or writes from working")
+    problems: list[str] = Field(default_factory=list, description="what is wrong and what to do, in plain words")
     version: str
     queue: Literal["sqlite", "redis"]
     workers: int = Field(description="workers heard from within the lease time")
+    workers_expected: int = Field(description="workers the service should have (FREECAL_WORKERS)")
+    storage_writable: bool = Field(True, description="whether the data directory takes writes now "
+                                                     "(reads work either way)")
     jobs: dict[str, int] = Field(description="jobs by state")
     queue_available: bool = Field(True, description="whether the queue takes jobs now (Redis reachable)")
     queue_error: str | None = Field(None, description="why not, when it does not")

@@ -50,7 +50,7 @@ def token_ok(conn: HTTPConnection) -> bool:
     return hmac.compare_digest(given.encode(), expected.encode())
 
 
-def require_token(request: Request) -> None:
+async def require_token(request: Request) -> None:  # async: no thread hop per request (see deps.py)
     if not token_ok(request):
         raise ApiError(401, TOKEN_NEEDED)
 
@@ -107,7 +107,7 @@ def client_of(request: Request) -> str:
     return request.client.host if request.client else "unknown"
 
 
-def get_quota(request: Request) -> ClientQuota:
+async def get_quota(request: Request) -> ClientQuota:
     return request.app.state.quota
 
 

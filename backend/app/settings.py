@@ -33,6 +33,10 @@ class Settings:
     max_attempts: int = 2
     # SqliteHuey polls; this caps the wait between polls of an idle queue.
     poll_seconds: float = 1.0
+    # Worker processes the service should have: `freecal serve` starts this many and starts a
+    # new one in place of any that dies; /api/health is "degraded" while fewer are alive.
+    # With workers run elsewhere (`serve --workers 0`, docker compose), set it to their number.
+    workers: int = 1
     # Worker threads per worker process (CPU-bound jobs scale better by processes).
     worker_threads: int = 1
     # BLAS/OpenMP threads per worker: the solver gains nothing from more, and
@@ -91,6 +95,8 @@ class Settings:
             except ValueError:
                 raise SystemExit(f"FREECAL_{f.name.upper()}={raw!r}: expected {kind.__name__}") from None
         settings = replace(cls(**values), **{k: v for k, v in overrides.items() if v is not None})
+        if settings.workers < 0:
+            raise SystemExit(f"FREECAL_WORKERS={settings.workers}: expected 0 or more")
         for name in ("max_upload_bytes", "max_files", "max_image_pixels", "max_jobs_per_client"):
             if getattr(settings, name) < 1:
                 raise SystemExit(f"FREECAL_{name.upper()}={getattr(settings, name)}: expected a positive number")

@@ -14,6 +14,7 @@ directory, fsynced, then renamed), so a crash never leaves half a result.
 """
 from __future__ import annotations
 
+import errno
 import json
 import os
 import re
@@ -23,6 +24,9 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 CHUNK = 1024 * 1024
+# errno values meaning "this data directory takes no writes now" (full, or read-only / not permitted)
+NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
+READ_ONLY = (errno.EROFS, errno.EACCES, errno.EPERM)
 _SAFE = re.compile(r"[^A-Za-z0-9._-]+")
 
 
@@ -76,6 +80,17 @@ def write_text(path: Path, text: str) -> None:
 def write_json(path: Path, doc: Any, indent: int | None = None) -> None:
     write_bytes(path, json.dumps(doc, indent=indent, allow_nan=False, separators=None if indent else (",", ":"))
                 .encode("utf-8"))
+
+
+def write_cache(path: Path, data: bytes) -> bytes:
+    """Keep ``data`` at ``path`` for the next reader (a thumbnail, a preview) when the data directory takes
+    writes, and return it either way: a full or read-only disk must not turn a read into an error."""
+    try:
+        write_bytes(path, data)
+    except OSError as exc:
+        if exc.errno not in NO_SPACE + READ_ONLY:
+            raise
+    return data
 
 
 def copy_stream(src: BinaryIO, path: Path, limit: int) -> int:

@@ -17,8 +17,8 @@ from .image_header import check_decodable
 SIZES = (160, 640)   # longest side in pixels: list thumbnails, and images to draw residuals on
 
 
-def thumbnail(images_dir: Path, cache_dir: Path, name: str, size: int, max_pixels: int) -> Path | None:
-    """The preview's path, or None when the image is missing or unreadable
+def thumbnail(images_dir: Path, cache_dir: Path, name: str, size: int, max_pixels: int) -> bytes | None:
+    """The preview (JPEG bytes), or None when the image is missing or unreadable
     (ApiError 413 when it has more than ``max_pixels``)."""
     import cv2
 
@@ -27,7 +27,7 @@ def thumbnail(images_dir: Path, cache_dir: Path, name: str, size: int, max_pixel
         return None
     out = cache_dir / str(size) / (src.name + ".jpg")
     if out.is_file() and out.stat().st_mtime >= src.stat().st_mtime:
-        return out
+        return out.read_bytes()
     check_decodable(src, src.name, max_pixels)
     img = cv2.imread(str(src), cv2.IMREAD_COLOR)
     if img is None:
@@ -39,5 +39,4 @@ def thumbnail(images_dir: Path, cache_dir: Path, name: str, size: int, max_pixel
     ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 82])
     if not ok:
         return None
-    storage.write_bytes(out, buf.tobytes())
-    return out
+    return storage.write_cache(out, buf.tobytes())

@@ -130,9 +130,6 @@ def observations_of(args) -> Observations:
 
 def run(args) -> int:
     obs = observations_of(args)
-    from ..queue.preflight import check_geometry
-
-    check_geometry(obs)  # the service's check: face-on views cannot determine the focal length
     cal = calibrate(obs, args.method, progress=StageProgress(args.quiet or args.json),
                     outlier_sigma=args.outlier_sigma, **settings_of(args))
     if args.output:

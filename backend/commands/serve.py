@@ -3,12 +3,12 @@
 The API and its workers on one machine, nothing else to install: the workers
 are child processes (``freecal worker``) on the embedded SQLite queue, so a
 long calibration never slows the API (no shared GIL) and a crashed job never
-takes the API down. They stop with the server (and on their own if it dies).
+takes the API down. A worker that dies is started again (``queue.supervisor``);
+the workers stop with the server, and on their own if it dies.
 """
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 from dataclasses import replace
 
@@ -21,8 +21,9 @@ def register(sub) -> None:
     p.add_argument("--host", default="127.0.0.1", help="interface to bind (default loopback only)")
     p.add_argument("--port", type=int, default=8000)
     add_queue_options(p)
-    p.add_argument("--workers", type=int, default=1,
-                   help="worker processes to start beside the API (0: run them elsewhere with `freecal worker`)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="worker processes to keep running beside the API (FREECAL_WORKERS, default 1; "
+                        "0: run them elsewhere with `freecal worker`)")
     p.set_defaults(run=run)
 
 
@@ -33,25 +34,23 @@ def run(args) -> int:
     from ..app.main import create_app
 
     settings = replace(settings_of(args), host=args.host)  # a name the API answers to (Host header)
+    if args.workers is not None:
+        settings = replace(settings, workers=max(0, args.workers))  # health expects this many
     from ..app.context import Context
 
     Context.check_writable(settings.data_dir)  # a clear line now, not a traceback from every process
     from ..app.security import check_viewer_exposure
 
     check_viewer_exposure(settings)  # before any worker starts (create_app checks it again)
+    from ..queue.supervisor import Supervisor
+
     env = {**os.environ, **settings.to_env()}
-    children = [subprocess.Popen([sys.executable, "-m", "backend.cli", "worker", "--parent-pid", str(os.getpid())],
-                                 env=env) for _ in range(max(0, args.workers))]
-    print(f"freecal: API on http://{args.host}:{args.port} (docs at /docs), {len(children)} worker(s), "
+    argv = [sys.executable, "-m", "backend.cli", "worker", "--parent-pid", str(os.getpid())]
+    supervisor = Supervisor(argv, env, settings.workers).start()
+    print(f"freecal: API on http://{args.host}:{args.port} (docs at /docs), {settings.workers} worker(s), "
           f"data in {settings.data_dir}", file=sys.stderr, flush=True)
     try:
         uvicorn.run(create_app(settings), host=args.host, port=args.port, **uvicorn_options())
     finally:
-        for child in children:
-            child.terminate()
-        for child in children:
-            try:
-                child.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                child.kill()
+        supervisor.stop()
     return 0

@@ -11,7 +11,7 @@ from calib_core import Observations, calibrate
 from calib_core.errors import DataError
 
 from ..app.context import Context
-from . import artefacts, preflight
+from . import artefacts
 from .lease import JobRun
 
 COMPARE = "compare"
@@ -32,7 +32,6 @@ def load_input(ctx: Context, job: dict[str, Any]) -> Observations:
 def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     run.progress("load", 0.0)
     obs = load_input(ctx, job)
-    preflight.check_geometry(obs)  # DataError (fronto-parallel views) before minutes of solving
     settings = dict(job["settings"])
     out = ctx.storage.job_dir(job["id"])
     if job["method"] == COMPARE:

@@ -21,11 +21,14 @@ log = logging.getLogger("freecal.worker")
 
 def run_worker(settings: Settings, threads: int | None = None, parent_pid: int | None = None) -> int:
     """Consume jobs until SIGINT (finish running jobs) or SIGTERM (stop now)."""
+    if parent_pid is not None:
+        from calib_core.lifetime import die_with_parent
+
+        die_with_parent(parent_pid)  # `freecal serve` killed outright: the kernel ends us too (Linux)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
     logging.getLogger("huey").setLevel(logging.WARNING)
     # OpenCV refuses to decode more pixels than the upload limit (TIFF/WebP bombs whose header
     # the API does not read); detection processes inherit it. Must precede cv2's import.
-    os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(settings.max_image_pixels))
     if settings.worker_nice > 0:
         try:
             os.nice(settings.worker_nice)
@@ -45,11 +48,11 @@ def run_worker(settings: Settings, threads: int | None = None, parent_pid: int |
 
     def maintain() -> None:
         if parent_pid is not None and os.getppid() != parent_pid:
-            # the `freecal serve` that started us is gone: stop rather than run orphaned
+            # the `freecal serve` that started us is gone (where the kernel did not end us): stop
             log.warning("parent process %d ended; stopping", parent_pid)
             os.kill(os.getpid(), signal.SIGTERM)
             return
-        workers.beat(ctx.db, WORKER_ID, socket.gethostname(), os.getpid(), started)
+        workers.beat(ctx.db, WORKER_ID, socket.gethostname(), os.getpid(), started, settings.lease_seconds)
         recover_stale(ctx, queue)
 
     maintain()

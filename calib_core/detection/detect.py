@@ -148,6 +148,9 @@ def _context():
 def _init_worker() -> None:
     import cv2
 
+    from ..lifetime import die_with_parent
+
+    die_with_parent()  # a detection killed outright (time limit, its worker gone) takes its pool with it
     cv2.setNumThreads(1)  # one image per core: OpenCV's own threads would only oversubscribe
 
 

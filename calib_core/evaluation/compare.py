@@ -30,6 +30,7 @@ from ..fitting.choice import Candidate, choose
 from ..fitting.crossval import folds
 from ..fitting.init import poses_from_rays
 from ..fitting.solve import SolveSettings, levenberg_marquardt
+from ..fitting.view_set import check_views
 from ..methods import METHODS
 from ..observations import Observations
 from ..pipeline import MIN_VIEWS, calibrate, to_data
@@ -151,6 +152,7 @@ def compare(observations: Observations, methods: list[str] | None = None, splits
                             f"on ({n_views} views): use fewer splits (--splits), or 0 to skip it")
     if holdout is not None and tuple(holdout.image_size) != tuple(observations.image_size):
         raise DataError("the hold-out views come from a camera with another image_size")
+    check_views(observations)  # a degenerate set fails as a whole, before any method runs
     progress = progress or (lambda stage, fraction: None)
     out: dict[str, Any] = {"methods": {}, "n_views": n_views, "n_points": observations.n_points, "splits": splits}
     out["quality_raw"] = _quality(quality.raw_quality, observations)

@@ -81,7 +81,10 @@ async function health() {
   // a worker reports in a few seconds after start: keep this line current
   try {
     const h = await api.health();
-    document.getElementById("health").textContent = `service ${h.version} · ${h.workers} worker(s) · queue ${h.queue}`;
+    const line = document.getElementById("health");
+    line.textContent = `service ${h.version} · ${h.workers} worker(s) · queue ${h.queue}`;
+    // degraded: the service answers but jobs or writes do not work; say what and what to do
+    if (h.status === "degraded") line.textContent += ` · degraded: ${(h.problems || []).join("; ")}`;
   } catch { document.getElementById("health").textContent = "service unreachable"; }
 }
 

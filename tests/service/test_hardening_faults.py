@@ -5,11 +5,14 @@ in C, never calling its progress callback: test_job_timeout.py).
 What exists elsewhere and is not repeated here: a worker SIGKILLed mid-job is
 retried and done by the next worker (test_service.py), the server killed mid-job
 fails the run with the reason after its last attempt (test_service.py), and an
-unreachable Redis at job creation answers 503 (test_service_redis.py).
+unreachable Redis at job creation answers 503 (test_service_redis.py). Supervision
+(kill -9 of `freecal serve`'s worker, of a job process, of the server alone, a
+stuck detection) is in test_supervision.py; a really full and a really read-only
+data directory under the real server in test_storage_faults.py.
 
-A full disk cannot be made here (no tmpfs, and root ignores chmod), so the
-disk-full and read-only cases make the file writes themselves raise ENOSPC /
-EROFS in-process, at the point where the service really writes.
+The in-process cases here make the file writes themselves raise ENOSPC / EROFS at
+the point where the service really writes (byte-exact: the first image fits, the
+second does not).
 """
 from __future__ import annotations
 
@@ -187,7 +190,10 @@ def test_redis_goes_away_and_comes_back(tmp_path):
 @pytest.fixture(scope="module")
 def timed(tmp_path_factory):
     root = tmp_path_factory.mktemp("faults")
-    svc = Service(root / "data", root, {**FAST, "FREECAL_JOB_TIMEOUT": "4", "FREECAL_VIEWER": "0"}).start()
+    # FREECAL_WORKER_NICE=0: jobs yield the CPU to all other work, so on a busy shared machine a quick job
+    # could pass the short limit; here the limit is under test, not the priority
+    svc = Service(root / "data", root, {**FAST, "FREECAL_JOB_TIMEOUT": "4", "FREECAL_VIEWER": "0",
+                                        "FREECAL_WORKER_NICE": "0"}).start()
     yield svc
     svc.stop()
 

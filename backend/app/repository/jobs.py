@@ -169,3 +169,16 @@ def count_by_state(db: Database) -> dict[str, int]:
     with db.connect() as con:
         rows = con.execute("SELECT state, COUNT(*) AS n FROM jobs GROUP BY state").fetchall()
     return {r["state"]: r["n"] for r in rows}
+
+
+def waiting(db: Database, longer_than: float, lease_seconds: float) -> list[str]:
+    """Ids of queued jobs waiting longer than ``longer_than`` seconds, oldest first.
+
+    A job re-queued after its worker fell silent has waited since at least its last heartbeat
+    plus the lease (when recovery could first take it back), not since it was created.
+    """
+    with db.connect() as con:
+        rows = con.execute(
+            "SELECT id FROM jobs WHERE state='queued' AND MAX(created_at, COALESCE(heartbeat_at + ?, 0)) < ? "
+            "ORDER BY created_at", (lease_seconds, time.time() - longer_than)).fetchall()
+    return [r["id"] for r in rows]

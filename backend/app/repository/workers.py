@@ -6,12 +6,15 @@ import time
 from ..db import Database
 
 
-def beat(db: Database, worker_id: str, host: str, pid: int, started_at: float) -> None:
+def beat(db: Database, worker_id: str, host: str, pid: int, started_at: float, within_seconds: float) -> None:
+    """This worker is alive; workers silent for ten leases are forgotten (written here, not on reads)."""
+    now = time.time()
     with db.transaction() as con:
+        con.execute("DELETE FROM workers WHERE heartbeat_at < ?", (now - 10 * within_seconds,))
         con.execute(
             "INSERT INTO workers (id, host, pid, started_at, heartbeat_at) VALUES (?,?,?,?,?) "
             "ON CONFLICT(id) DO UPDATE SET heartbeat_at=excluded.heartbeat_at",
-            (worker_id, host, pid, started_at, time.time()))
+            (worker_id, host, pid, started_at, now))
 
 
 def remove(db: Database, worker_id: str) -> None:
@@ -20,10 +23,8 @@ def remove(db: Database, worker_id: str) -> None:
 
 
 def live(db: Database, within_seconds: float) -> list[str]:
-    """Workers heard from recently; forgets the long-silent ones."""
-    now = time.time()
-    with db.transaction() as con:
-        con.execute("DELETE FROM workers WHERE heartbeat_at < ?", (now - 10 * within_seconds,))
+    """Workers heard from recently (a pure read: health works on a read-only data directory)."""
+    with db.connect() as con:
         rows = con.execute("SELECT id FROM workers WHERE heartbeat_at >= ? ORDER BY id",
-                           (now - within_seconds,)).fetchall()
+                           (time.time() - within_seconds,)).fetchall()
     return [r["id"] for r in rows]

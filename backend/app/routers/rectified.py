@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from fastapi import APIRouter
-from fastapi.responses import FileResponse
+from fastapi.responses import FileResponse, Response
 from starlette.concurrency import run_in_threadpool
 
 from .. import rectified, storage
@@ -29,8 +29,9 @@ def _done(ctx, job_id: str) -> dict:
     return job
 
 
-@router.get("/{job_id}/rectified/{name}", response_class=FileResponse, responses=ERRORS)
-async def read_rectified(ctx: ContextDep, job_id: str, name: str) -> FileResponse:
+@router.get("/{job_id}/rectified/{name}", response_class=Response,
+            responses={**ERRORS, 200: {"content": {"image/jpeg": {}}}})
+async def read_rectified(ctx: ContextDep, job_id: str, name: str) -> Response:
     """One photo of the job's set rectified by its calibration (JPEG, 640 px, valid pixels only)."""
     job = _done(ctx, job_id)
     if not job["set_id"]:
@@ -38,12 +39,12 @@ async def read_rectified(ctx: ContextDep, job_id: str, name: str) -> FileRespons
     images = {im["name"] for im in sets_service.get(ctx, job["set_id"]).get("images") or []}
     if name not in images:
         raise ApiError(404, f"the set of job {job_id} has no image {name!r}")
-    path = await run_in_threadpool(rectified.preview, ctx.storage.job_dir(job_id),
+    jpeg = await run_in_threadpool(rectified.preview, ctx.storage.job_dir(job_id),
                                    ctx.storage.images_dir(job["set_id"]) / storage.safe_name(name),
                                    ctx.settings.max_image_pixels)
-    if path is None:
+    if jpeg is None:
         raise ApiError(404, f"image {name!r} cannot be read")
-    return FileResponse(path, media_type="image/jpeg", headers={"Cache-Control": PRIVATE_IMAGE})
+    return Response(jpeg, media_type="image/jpeg", headers={"Cache-Control": PRIVATE_IMAGE})
 
 
 @router.get("/{job_id}/maps.npz", response_class=FileResponse, responses=ERRORS)

@@ -8,7 +8,7 @@ process (the API, a worker, a job, a command) decodes an image larger than
 """
 import os
 
-from .app.settings import Settings
+from .base.settings import Settings
 
 _limit = os.environ.get("FREECAL_MAX_IMAGE_PIXELS", "").strip()
 if _limit.isdigit():  # the service's limit is OpenCV's, whatever a parent process left in the environment

@@ -9,8 +9,8 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
+from ..base.context import Context
 from ..queue.tasks import Queue
-from .context import Context
 
 
 async def get_context(request: Request) -> Context:

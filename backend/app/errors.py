@@ -16,7 +16,7 @@ from fastapi.responses import JSONResponse
 
 from calib_core.errors import CalibError
 
-from . import storage
+from ..base.storage import storage_failure
 
 log = logging.getLogger("freecal.api")
 
@@ -29,28 +29,6 @@ class ApiError(Exception):
 
 def not_found(what: str, ident: str) -> ApiError:
     return ApiError(404, f"no {what} with id {ident!r}: list them at /api/{what}s")
-
-
-DISK_FULL = "the server's disk is full: nothing was stored; free space in its data directory (or ask its " \
-            "administrator to) and retry"
-READ_ONLY = "the server cannot write its data directory (read-only or no permission): nothing was stored; " \
-            "ask its administrator to make FREECAL_DATA_DIR writable, then retry"
-
-
-def storage_failure(exc: BaseException) -> tuple[int, str] | None:
-    """(status, message) when ``exc`` means the data directory cannot take writes, else None."""
-    if isinstance(exc, OSError):
-        if exc.errno in storage.NO_SPACE:
-            return 507, DISK_FULL
-        if exc.errno in storage.READ_ONLY:
-            return 503, READ_ONLY
-    if isinstance(exc, sqlite3.OperationalError):
-        text = str(exc).lower()
-        if "disk is full" in text or "disk i/o" in text:
-            return 507, DISK_FULL
-        if "readonly" in text or "read-only" in text or "unable to open" in text:
-            return 503, READ_ONLY
-    return None
 
 
 def install(app: FastAPI) -> None:

@@ -14,10 +14,11 @@ from contextlib import asynccontextmanager
 
 from fastapi import FastAPI
 
+from ..base.context import Context
+from ..base.settings import Settings
 from ..queue.recovery import Periodic, recover_stale, requeue_pending, resend_stuck
 from ..queue.tasks import QueueUnavailable, build_queue
 from . import allow, errors, frontend
-from .context import Context
 from .header_limit import HeaderLimit
 from .headers import SecurityHeaders
 from .limits import BodyLimit, Limit
@@ -25,7 +26,6 @@ from .openapi import install_schema
 from .origins import Allowed, OriginGuard
 from .routers import figures, health, images, jobs, rectified, sets, viewer
 from .security import ClientQuota, TokenDep, check_viewer_exposure, install_cors, install_docs
-from .settings import Settings
 
 log = logging.getLogger("freecal.api")
 
@@ -85,7 +85,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.include_router(module.router, dependencies=[TokenDep])  # FREECAL_TOKEN, when set
     install_docs(app)
     install_schema(app)  # the errors as they are answered ({"detail": "..."}), in /openapi.json
-    from ..viewer import proxy
+    from . import viewer_proxy as proxy
 
     proxy.install(app)  # /viewer: the 3D view behind the same token
     frontend.mount(app)  # last: the page at / never shadows /api or /docs

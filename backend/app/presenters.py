@@ -5,7 +5,7 @@ import time
 from datetime import UTC, datetime
 from typing import Any
 
-from .context import Context
+from ..base.context import Context
 from .schemas import ImagePublic, JobPublic, SetPublic, Timings
 from .services import sets as set_service
 

@@ -16,7 +16,7 @@ from calib_core.errors import CalibError
 from calib_core.evaluation.quality import geometric_quality, raw_quality
 from calib_core.products.rectify import fixed_camera, rectified_camera, rectify_image, undistort_maps
 
-from . import storage
+from ..base import storage
 from .image_header import check_decodable
 
 PREVIEW_SIZE = 640  # pixels on the longest side

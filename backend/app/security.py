@@ -29,8 +29,8 @@ from starlette.requests import HTTPConnection
 
 from calib_core.errors import SettingsError
 
+from ..base.repository import jobs as job_rows
 from .errors import ApiError
-from .repository import jobs as job_rows
 
 TOKEN_NEEDED = ("this server needs a token: send the header 'Authorization: Bearer <token>' "
                 "(or ?token=<token> in a link); ask its administrator for FREECAL_TOKEN")

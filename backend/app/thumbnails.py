@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from . import storage
+from ..base import storage
 from .image_header import check_decodable
 
 SIZES = (160, 640)   # longest side in pixels: list thumbnails, and images to draw residuals on

@@ -11,10 +11,11 @@ from typing import Any, BinaryIO
 from calib_core import Observations
 from calib_core.detection.detect import IMAGE_SUFFIXES  # one list: what the command line and the service read
 
-from . import bounded_json, storage
+from ..base import storage
+from ..base.settings import Settings
+from . import bounded_json
 from .errors import ApiError
 from .image_header import check_decodable, check_pixels
-from .settings import Settings
 
 MIN_SIDE = 32               # pixels: no board's corners fit in less
 MAX_ZIP_RATIO = 200         # unpacked / packed bytes of a zip's images

@@ -36,7 +36,7 @@ def run(args) -> int:
     settings = replace(settings_of(args), host=args.host)  # a name the API answers to (Host header)
     if args.workers is not None:
         settings = replace(settings, workers=max(0, args.workers))  # health expects this many
-    from ..app.context import Context
+    from ..base.context import Context
 
     Context.check_writable(settings.data_dir)  # a clear line now, not a traceback from every process
     from ..app.security import check_viewer_exposure

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..app.settings import Settings
+from ..base.settings import Settings
 
 
 def add_queue_options(p: argparse.ArgumentParser) -> None:
@@ -31,7 +31,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..app.context import Context
+    from ..base.context import Context
     from ..queue.worker import run_worker
 
     settings = settings_of(args)

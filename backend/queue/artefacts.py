@@ -13,7 +13,7 @@ from calib_core import Calibration, Observations
 from calib_core.calibration import json_safe
 from calib_core.report.tables import report_files, to_csv
 
-from ..app import storage
+from ..base import storage
 
 
 def write_calibration(out: Path, cal: Calibration, obs: Observations) -> list[str]:

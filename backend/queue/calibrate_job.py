@@ -10,7 +10,7 @@ from typing import Any
 from calib_core import Observations, calibrate
 from calib_core.errors import DataError
 
-from ..app.context import Context
+from ..base.context import Context
 from . import artefacts
 from .lease import JobRun
 

@@ -15,9 +15,9 @@ import numpy as np
 from calib_core import Observations
 from calib_core.errors import DataError
 
-from ..app import storage
-from ..app.context import Context
-from ..app.repository import sets
+from ..base import storage
+from ..base.context import Context
+from ..base.repository import sets
 from .lease import JobRun
 
 BATCHES = 8             # status updates per set; each batch still runs on every core

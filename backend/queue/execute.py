@@ -13,8 +13,8 @@ import logging
 from calib_core.errors import CalibError
 from calib_core.fitting.solve import Cancelled
 
-from ..app.context import Context
-from ..app.repository import jobs
+from ..base.context import Context
+from ..base.repository import jobs
 from . import calibrate_job, detect_job, job_process
 from .lease import WORKER_ID, JobRun
 
@@ -51,7 +51,7 @@ def run_claimed(ctx: Context, job_id: str, attempt: int) -> None:
         log.info("job %s failed: %s", job_id, exc)
         return
     except Exception as exc:
-        from ..app.errors import storage_failure
+        from ..base.storage import storage_failure
 
         full = storage_failure(exc)
         if full is not None:  # disk full / read-only data dir: say so, not "internal error"

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from huey import Huey, RedisHuey, SqliteHuey
 
-from ..app.settings import Settings
+from ..base.settings import Settings
 
 NAME = "freecal"
 

@@ -32,9 +32,9 @@ import threading
 import time
 from pathlib import Path
 
-from ..app.context import Context
-from ..app.repository import jobs
-from ..app.settings import Settings
+from ..base.context import Context
+from ..base.repository import jobs
+from ..base.settings import Settings
 
 log = logging.getLogger("freecal.worker")
 TIME_LIMIT = ("the job exceeded the {limit:g} s time limit (FREECAL_JOB_TIMEOUT) and was stopped: try fewer views "

@@ -15,8 +15,8 @@ from typing import Any
 
 from calib_core.fitting.solve import Cancelled
 
-from ..app.context import Context
-from ..app.repository import jobs
+from ..base.context import Context
+from ..base.repository import jobs
 
 WORKER_ID = f"{socket.gethostname()}:{os.getpid()}"  # read in the worker process (the claim), not in job processes
 MIN_REPORT_SECONDS = 0.25

@@ -17,8 +17,8 @@ import threading
 import time
 from collections.abc import Callable
 
-from ..app.context import Context
-from ..app.repository import jobs, workers
+from ..base.context import Context
+from ..base.repository import jobs, workers
 from .tasks import Queue
 
 log = logging.getLogger("freecal.recovery")

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 from huey import Huey
 
-from ..app.context import Context
+from ..base.context import Context
 from .instance import build_huey
 
 

@@ -8,9 +8,9 @@ import signal
 import socket
 import time
 
-from ..app.context import Context
-from ..app.repository import workers
-from ..app.settings import Settings
+from ..base.context import Context
+from ..base.repository import workers
+from ..base.settings import Settings
 from . import job_process
 from .lease import WORKER_ID
 from .recovery import Periodic, recover_stale

@@ -14,8 +14,8 @@ import numpy as np
 
 from calib_core import Calibration, Observations
 
-from ..app.context import Context
-from ..app.repository import jobs as job_rows
+from ..base.context import Context
+from ..base.repository import jobs as job_rows
 
 
 @dataclass

@@ -12,7 +12,7 @@ import threading
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..app.context import Context
+from ..base.context import Context
 from . import data
 from .gate import ProxyOnly
 from .scene import COMPONENTS, Built, build_scene, set_component
@@ -151,7 +151,7 @@ class Viewer:
         set_component(session.built, session.component)
 
     def _job(self, job_id: str) -> dict[str, Any] | None:
-        from ..app.repository import jobs
+        from ..base.repository import jobs
 
         return jobs.get(self.ctx.db, job_id)
 

@@ -25,10 +25,10 @@ import subprocess
 import pytest
 from fastapi.testclient import TestClient
 
-from backend.app import storage
 from backend.app.main import create_app
-from backend.app.repository import jobs as job_rows
-from backend.app.settings import Settings
+from backend.base import storage
+from backend.base.repository import jobs as job_rows
+from backend.base.settings import Settings
 
 from ..conftest import synthetic
 from .harness import (
@@ -108,7 +108,7 @@ def test_upload_when_the_disk_fails_stores_nothing_and_says_why(app, monkeypatch
 
 
 def test_database_full_rolls_back_the_set(app, monkeypatch):
-    from backend.app.repository import sets as set_rows
+    from backend.base.repository import sets as set_rows
 
     def full(*args, **kwargs):
         raise sqlite3.OperationalError("database or disk is full")

@@ -9,9 +9,9 @@ import pytest
 from fastapi.testclient import TestClient
 
 from backend.app.main import create_app
-from backend.app.repository import jobs, workers
 from backend.app.services import health as assessment
-from backend.app.settings import Settings
+from backend.base.repository import jobs, workers
+from backend.base.settings import Settings
 from backend.queue import supervisor
 from backend.queue.recovery import resend_stuck
 from backend.queue.supervisor import Supervisor

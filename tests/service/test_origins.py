@@ -106,7 +106,7 @@ def test_a_host_that_is_not_this_server_is_refused(open_svc):
 
 def test_allowed_hosts_follow_the_settings():
     from backend.app.origins import Allowed
-    from backend.app.settings import Settings
+    from backend.base.settings import Settings
 
     default = Allowed.of(Settings.from_env(env={}))
     assert default.host_ok("127.0.0.1:8000") and default.host_ok("LOCALHOST.") and not default.host_ok("10.0.0.5")

@@ -15,8 +15,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from backend.app.main import create_app
-from backend.app.repository import jobs as job_rows
-from backend.app.settings import Settings
+from backend.base.repository import jobs as job_rows
+from backend.base.settings import Settings
 
 from ..conftest import synthetic
 

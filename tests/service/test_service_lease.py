@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import time
 
-from backend.app.db import Database
-from backend.app.repository import jobs
+from backend.base.db import Database
+from backend.base.repository import jobs
 
 
 def make(tmp_path, job_id="j1") -> Database:

@@ -6,11 +6,11 @@ from typing import Literal
 from fastapi import APIRouter, Request, Response, status
 from fastapi.responses import FileResponse
 
+from ...base.repository import jobs as job_rows
 from ..bounded_json import BoundedJSONRoute
 from ..deps import ContextDep, QueueDep
 from ..errors import ApiError
 from ..presenters import job_public
-from ..repository import jobs as job_rows
 from ..schemas import JobCreate, JobPublic, JobsPublic, Message
 from ..security import QuotaDep, client_of
 from ..services import jobs as service

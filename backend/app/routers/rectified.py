@@ -10,7 +10,8 @@ from fastapi import APIRouter
 from fastapi.responses import FileResponse, Response
 from starlette.concurrency import run_in_threadpool
 
-from .. import rectified, storage
+from ...base import storage
+from .. import rectified
 from ..deps import ContextDep
 from ..errors import ApiError
 from ..schemas import Message

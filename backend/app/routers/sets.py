@@ -7,11 +7,11 @@ from fastapi import APIRouter, File, Form, Request, Response, UploadFile, status
 from fastapi.responses import FileResponse
 from starlette.concurrency import run_in_threadpool
 
+from ...base.repository import jobs as job_rows
+from ...base.repository import sets as set_rows
 from ..deps import ContextDep, QueueDep
 from ..errors import ApiError
 from ..presenters import set_public
-from ..repository import jobs as job_rows
-from ..repository import sets as set_rows
 from ..schemas import Message, SetPublic, SetsPublic
 from ..security import QuotaDep, client_of
 from ..services import sets as service

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from ...base.context import Context
 from ...queue.tasks import Queue, QueueUnavailable
-from ..context import Context
 from ..errors import ApiError
 
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 import os
 import time
 
+from ...base.context import Context
+from ...base.repository import jobs, workers
+from ...base.storage import storage_failure
 from ...queue.recovery import stuck_ids
 from ...queue.tasks import Queue
-from ..context import Context
-from ..errors import storage_failure
-from ..repository import jobs, workers
 from ..schemas import Health
 
 VERSION = "0.1.0"

@@ -10,11 +10,12 @@ from calib_core.methods import METHODS
 from calib_core.methods.common import settings_from
 from calib_core.pipeline import check_outlier_sigma
 
+from ...base import storage
+from ...base.context import Context
+from ...base.repository import jobs, sets
 from ...queue.tasks import Queue
-from .. import storage, uploads
-from ..context import Context
+from .. import uploads
 from ..errors import ApiError, not_found
-from ..repository import jobs, sets
 from ..schemas import JobCreate
 from . import sets as set_service
 from .enqueue import enqueue_or_undo

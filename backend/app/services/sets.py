@@ -3,11 +3,12 @@ from __future__ import annotations
 
 from typing import Any
 
+from ...base import storage
+from ...base.context import Context
+from ...base.repository import jobs, sets
 from ...queue.tasks import Queue
-from .. import bounded_json, storage, uploads
-from ..context import Context
+from .. import bounded_json, uploads
 from ..errors import ApiError, not_found
-from ..repository import jobs, sets
 from .enqueue import enqueue_or_undo
 from .ids import new_id
 

@@ -26,9 +26,9 @@ import urllib.request
 from fastapi import FastAPI, Request, WebSocket
 from fastapi.responses import Response
 
-from ..app.errors import ApiError
-from ..app.security import TOKEN_NEEDED, TokenDep, token_ok
-from .gate import KEY_HEADER
+from ..viewer.gate import KEY_HEADER
+from .errors import ApiError
+from .security import TOKEN_NEEDED, TokenDep, token_ok
 
 MAX_FRAME = 64 * 1024 * 1024  # viser itself allows 50 MB messages
 

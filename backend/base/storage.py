@@ -19,6 +19,7 @@ import json
 import os
 import re
 import shutil
+import sqlite3
 import tempfile
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -129,3 +130,26 @@ class _atomic:
         finally:
             if os.path.exists(self.tmp):
                 os.unlink(self.tmp)
+
+
+# ---- what a failed write means, in words the client can act on ------------------
+DISK_FULL_ANSWER = "the server's disk is full: nothing was stored; free space in its data directory (or ask its " \
+            "administrator to) and retry"
+READ_ONLY_ANSWER = "the server cannot write its data directory (read-only or no permission): nothing was stored; " \
+            "ask its administrator to make FREECAL_DATA_DIR writable, then retry"
+
+
+def storage_failure(exc: BaseException) -> tuple[int, str] | None:
+    """(status, message) when ``exc`` means the data directory cannot take writes, else None."""
+    if isinstance(exc, OSError):
+        if exc.errno in NO_SPACE:
+            return 507, DISK_FULL_ANSWER
+        if exc.errno in READ_ONLY:
+            return 503, READ_ONLY_ANSWER
+    if isinstance(exc, sqlite3.OperationalError):
+        text = str(exc).lower()
+        if "disk is full" in text or "disk i/o" in text:
+            return 507, DISK_FULL_ANSWER
+        if "readonly" in text or "read-only" in text or "unable to open" in text:
+            return 503, READ_ONLY_ANSWER
+    return None

@@ -24,7 +24,8 @@ from backend.commands.output import table as print_table
 from calib_core import synth
 from calib_core.detection import babelcalib
 from calib_core.errors import CalibError
-from calib_core.evaluation.compare import compare, validation_residuals
+from calib_core.evaluation.compare import compare
+from calib_core.evaluation.evaluate import validation_residuals
 from calib_core.evaluation.uncertainty import aligned_projection, projection_uncertainty
 from calib_core.fitting import metrics
 from calib_core.fitting.solve import Data, SolveSettings, levenberg_marquardt
@@ -190,7 +191,7 @@ def freecal_bspline(train, test, **settings) -> dict:
     t0 = time.process_time()  # CPU time, as mrcal_fit.py measures: the machine may be shared
     cal = calibrate(train, "bspline", **settings)
     seconds = time.process_time() - t0
-    r, _ = validation_residuals(cal, test)  # pose-only refit, as mrcal_fit.holdout does
+    r, _, _ = validation_residuals(cal, test)  # pose-only refit, as mrcal_fit.holdout does
     st = cal.settings
     return {"seconds": seconds, "train_rmse": cal.metrics["rmse"], "train_rmse_axis": cal.metrics["rmse_axis"],
             "test_rmse": metrics.rmse(r), "test_rmse_axis": metrics.rmse_axis(r),

@@ -111,7 +111,7 @@ def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Cal
             break
         outlier |= new
         keep = used & ~outlier
-        sub = Data(data.object_points[keep], data.image_points[keep], data.view_index[keep], data.n_views)
+        sub = data.points(keep)
         if fit.refit is not None:
             res = fit.refit(sub, res)
         else:

@@ -23,18 +23,16 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..calibration import Calibration
 from ..errors import CalibError, DataError, SettingsError
 from ..fitting import metrics
 from ..fitting.choice import Candidate, choose
 from ..fitting.crossval import folds
-from ..fitting.init import poses_from_rays
-from ..fitting.solve import SolveSettings, levenberg_marquardt
 from ..fitting.view_set import check_views
 from ..methods import METHODS
 from ..observations import Observations
-from ..pipeline import MIN_VIEWS, calibrate, to_data
+from ..pipeline import MIN_VIEWS, calibrate
 from . import quality
+from .evaluate import validation_residuals
 
 DEFAULT_METHODS = ("zhang", "rational", "fisheye", "mls", "tps", "bspline")
 # The verdict's order of simplicity: parametric models by their number of
@@ -44,18 +42,6 @@ STRUCTURE_P_VALUE = 0.01  # below this, the residuals are called spatially struc
 N_PERMUTATIONS = 200
 
 Progress = Callable[[str, float], None]
-
-
-def validation_residuals(cal: Calibration, obs: Observations) -> tuple[np.ndarray, Any]:
-    """Residuals (N, 2) of ``obs`` under ``cal``'s model after a pose-only refit
-    (``evaluate.py``'s protocol), and the flat data they belong to."""
-    data, _, _ = to_data(obs)
-    poses = poses_from_rays(cal.model, data)
-    if poses is None:
-        raise DataError("could not find a board pose for every validation view "
-                        "(too few corners the model can unproject)")
-    res = levenberg_marquardt(cal.model, poses, data, SolveSettings(max_iterations=200, fix_model=True))
-    return res.residuals, data
 
 
 def neighbour_correlation(residuals: np.ndarray, object_points: np.ndarray, view_index: np.ndarray,
@@ -111,7 +97,7 @@ def _cross_validate(obs: Observations, method: str, splits: int) -> tuple[dict[s
         val_names = [names[i] for i in held]
         train = obs.select([n for n in names if n not in val_names])
         cal = calibrate(train, method)
-        r, data = validation_residuals(cal, obs.select(val_names))
+        r, data, _ = validation_residuals(cal, obs.select(val_names))
         cal_rmse.append(cal.metrics["rmse"])
         val_rmse.append(metrics.rmse(r))
         rows.append({"validated": val_names, "calibration_rmse": cal_rmse[-1], "validation_rmse": val_rmse[-1],
@@ -168,7 +154,7 @@ def compare(observations: Observations, methods: list[str] | None = None, splits
             entry["n_params"] = int(cal.model.n_params)
             entry["quality"] = _quality(quality.geometric_quality, cal, observations)  # paper Table 7
             if holdout is not None:
-                r, data = validation_residuals(cal, holdout)
+                r, data, _ = validation_residuals(cal, holdout)
                 s = metrics.summary(r, data.image_points, holdout.image_size)
                 entry.update({"holdout_rmse": s["rmse"], "holdout_rmse_axis": s["rmse_axis"],
                               "holdout_rmse_center": s["rmse_center"], "holdout_rmse_edge": s["rmse_edge"]})

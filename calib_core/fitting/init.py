@@ -141,7 +141,7 @@ def _subsample(data: Data, max_views: int, per_view: int, rng: np.random.Generat
         idx = np.flatnonzero(data.view_index == k)
         per_view_picks.append(idx if len(idx) <= per_view else np.sort(rng.choice(idx, per_view, replace=False)))
     keep = np.concatenate(per_view_picks)
-    return Data(data.object_points[keep], data.image_points[keep], data.view_index[keep], data.n_views)
+    return data.points(keep)
 
 
 def check_planar(data: Data) -> None:

@@ -51,6 +51,10 @@ class Data:
     def n_points(self) -> int:
         return len(self.image_points)
 
+    def points(self, keep: np.ndarray) -> Data:
+        """The points ``keep`` (bool mask or indices), every view kept (numbered as here)."""
+        return Data(self.object_points[keep], self.image_points[keep], self.view_index[keep], self.n_views)
+
 
 def select_views(data: Data, views: np.ndarray, points: np.ndarray | None = None) -> Data:
     """The ``points`` (bool mask; default all) of ``views``, renumbered 0..len(views)-1 in that order."""

@@ -145,7 +145,7 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -
         errors = None
         if fit is not None:
             used = ~fit.excluded
-            own = Data(sample.object_points[used], sample.image_points[used], sample.view_index[used], sample.n_views)
+            own = sample.points(used)
             model = fit.result.model
             try:
                 held = _held_steps(model, core_steps.get(spec.core)) if spec.field is not None else None

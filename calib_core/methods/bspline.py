@@ -470,7 +470,7 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
     else:
         problem, start, poses, ok, reason = core_field_problem(data, image_size, s, core, progress, core_fit)
         init_info = {"model": f"{core} core, fitted alone first"}
-    sub = Data(data.object_points[ok], data.image_points[ok], data.view_index[ok], data.n_views)
+    sub = data.points(ok)
 
     reference = (init.model, init.poses) if core == "none" else (start, poses)  # a parametric camera
     progress("knots", 0.1)

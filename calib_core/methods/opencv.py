@@ -107,7 +107,7 @@ def fit_opencv(data: Data, image_size: tuple[int, int], s: OpenCVSettings, progr
             f"most corners lie more than {MAX_ANGLE_DEG:.0f}° off axis, where OpenCV's pinhole-based model "
             "cannot represent them: use --method fisheye or bspline with --base equidistant"
         )
-    sub = Data(data.object_points[ok], data.image_points[ok], data.view_index[ok], data.n_views)
+    sub = data.points(ok)
     fx, fy, cx, cy, _ = init.model.intrinsics
     pc = camera.transform(init.poses, sub.view_index, sub.object_points)
     xn = pc[:, :2] / pc[:, 2:]

@@ -172,7 +172,7 @@ def _fit_residual(kind: str, data: Data, image_size: tuple[int, int], s: TPSSett
     base = _zhang(data, image_size, s, progress)
     progress(f"{kind} field", 0.6)
     used = ~base.excluded
-    sub = Data(data.object_points[used], data.image_points[used], data.view_index[used], data.n_views)
+    sub = data.points(used)
     model, chosen, table = _fit_field(base.result, sub, image_size, s)
     res = _with_model(base.result, model, sub)
     key = "smoothing" if kind == "tps" else "support"

@@ -16,7 +16,6 @@ import numpy as np
 
 from ..calibration import Calibration, json_safe
 from ..exports import opencv_yaml
-from ..fitting.solve import Data
 from ..observations import Observations
 
 HEATMAP_CELLS = (16, 12)   # columns, rows over the image
@@ -160,7 +159,7 @@ def uncertainty_map(cal: Calibration, obs: Observations, step: float = UNCERTAIN
     outliers = {(n, i) for n in names for i in cal.view(n).outliers}
     if outliers:
         keep = np.array([(names[k], int(i)) not in outliers for k, i in zip(data.view_index, local, strict=True)])
-        data = Data(data.object_points[keep], data.image_points[keep], data.view_index[keep], data.n_views)
+        data = data.points(keep)
     poses = np.array([cal.view(n).pose for n in names])
     um = projection_uncertainty(cal.model, poses, data, cal.image_size, step=step)
     doc = um.to_json()

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib_core.evaluation.compare import validation_residuals
+from calib_core.evaluation.evaluate import validation_residuals
 from calib_core.fitting.choice import Candidate, choose
 from calib_core.fitting.metrics import rmse
 from calib_core.pipeline import calibrate

@@ -118,7 +118,7 @@ class Calibration:
         except (TypeError, ValueError, OverflowError, KeyError, IndexError, AttributeError) as exc:
             # a shape no check below foresaw (e.g. in a model's own reader): still a format error
             raise FormatError(f"calibration: malformed document ({type(exc).__name__}: {exc}); "
-                              f"expected {FORMAT} as in formats.md") from None
+                              f"expected {FORMAT} as in docs/formats.md") from None
 
     @classmethod
     def _from_json(cls, doc: Any) -> Calibration:

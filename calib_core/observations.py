@@ -87,7 +87,7 @@ class Observations:
             return cls._from_json(doc)
         except (TypeError, ValueError, OverflowError) as exc:  # a shape no check below foresaw
             raise FormatError(f"observations: malformed document ({type(exc).__name__}: {exc}); "
-                              f"expected {FORMAT} as in formats.md") from None
+                              f"expected {FORMAT} as in docs/formats.md") from None
 
     @classmethod
     def _from_json(cls, doc: Any) -> Observations:

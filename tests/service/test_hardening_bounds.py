@@ -26,7 +26,7 @@ import pytest
 
 from ..conftest import synthetic
 from .harness import FAST, QUICK, ROOT, Service, upload_observations, wait_job
-from .test_hardening_inputs import BOARD, board_image, encode, png_header_only, still_works
+from .test_hardening_inputs import BOARD, board_image, encode, png_header_only, refused, still_works
 
 pytestmark = pytest.mark.slow
 
@@ -43,15 +43,6 @@ def service(tmp_path_factory):
     svc = Service(root / "data", root, env).start()
     yield svc
     svc.stop()
-
-
-def refused(svc: Service, r, status: int, *words: str) -> None:
-    assert r.status_code == status, r.text
-    detail = r.json()["detail"]
-    for w in words:
-        assert w in detail, f"{w!r} not in {detail!r}"
-    assert "Traceback" not in detail
-    still_works(svc)
 
 
 def upload(svc: Service, name: str, data: bytes, board: str = BOARD):

@@ -13,7 +13,7 @@ COPY pyproject.toml README.md ./
 COPY calib_core ./calib_core
 COPY backend ./backend
 COPY frontend ./frontend
-RUN pip install --upgrade pip && pip install .
+RUN pip install --upgrade pip && pip install ".[service]"
 # the page is served from this folder (an installed package does not carry it)
 ENV FREECAL_FRONTEND_DIR=/app/frontend
 

@@ -42,3 +42,15 @@ class StageProgress:
             return
         self.stage = stage
         print(f"[{time.perf_counter() - self.t0:6.2f} s] {stage} ({100 * fraction:.0f} %)", file=sys.stderr, flush=True)
+
+
+def require_service(command: str) -> None:
+    """``freecal serve`` and ``worker`` need the web stack, an optional part of the install."""
+    import importlib.util
+
+    from calib_core.errors import SettingsError
+
+    missing = [m for m in ("fastapi", "uvicorn", "huey", "viser") if importlib.util.find_spec(m) is None]
+    if missing:
+        raise SettingsError(f"freecal {command} needs the service's packages ({', '.join(missing)} missing): "
+                            "pip install 'freecal[service]'")

@@ -12,6 +12,7 @@ import os
 import sys
 from dataclasses import replace
 
+from .output import require_service
 from .worker import add_queue_options, settings_of
 
 
@@ -28,6 +29,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    require_service("serve")
     import uvicorn
 
     from ..app.header_limit import uvicorn_options

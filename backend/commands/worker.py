@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 
 from ..base.settings import Settings
+from .output import require_service
 
 
 def add_queue_options(p: argparse.ArgumentParser) -> None:
@@ -31,6 +32,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    require_service("worker")
     from ..base.context import Context
     from ..queue.worker import run_worker
 

@@ -1,0 +1,87 @@
+"""Refuse oversized request bodies (413) before the app holds them.
+
+Pure ASGI middleware, in front of every route: FastAPI parses a body (a
+multipart upload, spooled to disk; a JSON document, into memory) before any
+handler or dependency runs. A declared Content-Length over the limit is
+refused before reading a byte; a body without one (``Transfer-Encoding:
+chunked``) is counted as it arrives and refused the moment it passes the limit,
+so at most the limit is ever read, spooled or parsed.
+
+Each path has its limit: uploads (POST /api/sets) take FREECAL_MAX_UPLOAD_BYTES,
+every other body (JSON: a job with inline observations) FREECAL_MAX_OBSERVATIONS_BYTES.
+"""
+from __future__ import annotations
+
+import json
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass
+from typing import Any
+
+Scope = dict[str, Any]
+Message = dict[str, Any]
+ASGIApp = Callable[[Scope, Callable, Callable], Awaitable[None]]
+
+
+@dataclass(frozen=True)
+class Limit:
+    max_bytes: int      # the setting's value, as the message says it
+    advice: str         # what to do instead, naming the setting
+    slack: int = 0      # bytes allowed past max_bytes: the multipart framing around the files
+
+    @property
+    def bytes_allowed(self) -> int:
+        return self.max_bytes + self.slack
+
+
+class _TooLarge(Exception):
+    """The body went past its limit while being read."""
+
+
+class BodyLimit:
+    def __init__(self, app: ASGIApp, default: Limit, paths: dict[str, Limit]):
+        self.app, self.default, self.paths = app, default, paths
+
+    async def __call__(self, scope: Scope, receive: Callable, send: Callable) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        limit = self.paths.get(scope["path"], self.default)
+        length = dict(scope["headers"]).get(b"content-length", b"")
+        if length.isdigit() and int(length) > limit.bytes_allowed:
+            await _refuse(send, limit, f"request body of {int(length)} bytes")
+            return
+        received, refused, started = 0, False, False
+
+        async def counted() -> Message:
+            nonlocal received, refused
+            message = await receive()
+            if message["type"] == "http.request":
+                received += len(message.get("body", b""))
+                if received > limit.bytes_allowed:
+                    refused = True
+                    raise _TooLarge
+            return message
+
+        async def guarded(message: Message) -> None:
+            nonlocal started
+            if refused:  # the app's own answer to a body cut short (FastAPI's: 400) gives way to the 413
+                return
+            started = started or message["type"] == "http.response.start"
+            await send(message)
+
+        try:
+            await self.app(scope, counted, guarded)
+        except Exception:
+            if not refused:
+                raise
+        if refused and not started:
+            await _refuse(send, limit, f"request body of more than {limit.bytes_allowed} bytes")
+
+
+async def _refuse(send: Callable, limit: Limit, what: str) -> None:
+    body = json.dumps({"detail": f"{what} is over the limit of {limit.max_bytes} bytes: {limit.advice}"}).encode()
+    await send({"type": "http.response.start", "status": 413,
+                "headers": [(b"content-type", b"application/json"),
+                            (b"content-length", str(len(body)).encode()),
+                            (b"connection", b"close")]})  # the rest of the body is never read
+    await send({"type": "http.response.body", "body": body})

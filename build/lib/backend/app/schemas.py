@@ -1,0 +1,125 @@
+"""The API's typed bodies (OpenAPI at /docs). Families: XCreate (in), XPublic (out), XsPublic (lists)."""
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Literal
+
+from pydantic import BaseModel, Field, model_validator
+
+JobState = Literal["queued", "running", "done", "failed", "cancelled"]
+SetState = Literal["queued", "detecting", "ready", "failed", "cancelled"]
+
+
+class Message(BaseModel):
+    detail: str = Field(description="what went wrong and what to do")
+
+
+class Created(BaseModel):
+    id: str
+
+
+class ImagePublic(BaseModel):
+    name: str
+    status: Literal["pending", "used", "rejected"]
+    n_corners: int | None = None
+    reason: str | None = None
+    sharpness: float | None = None
+    width: int | None = None
+    height: int | None = None
+
+
+class SetPublic(BaseModel):
+    id: str
+    name: str
+    source: Literal["images", "observations"]
+    board: dict[str, Any] | None
+    state: SetState = Field(description="ready once corners are known")
+    progress: float = Field(description="detection progress, 0-100 %")
+    error: str | None = None
+    image_size: list[int] | None = Field(None, description="[width, height] in pixels")
+    n_images: int
+    n_views: int = Field(description="views with corners")
+    coverage: dict[str, Any] | None = None
+    warnings: list[str] = []
+    created_at: datetime
+    detection_job: str | None = None
+    images: list[ImagePublic] | None = Field(None, description="per-image detection status (in reads of one set)")
+
+
+class SetsPublic(BaseModel):
+    sets: list[SetPublic]
+    count: int
+
+
+class JobCreate(BaseModel):
+    # the schema says what one_input checks: exactly one of the two inputs, not null
+    model_config = {"json_schema_extra": {"oneOf": [
+        {"required": ["set_id"], "properties": {"set_id": {"type": "string"}, "observations": {"type": "null"}}},
+        {"required": ["observations"], "properties": {"observations": {"type": "object"}, "set_id": {"type": "null"}}},
+    ]}}
+
+    set_id: str | None = Field(None, description="an image set whose corners are ready")
+    observations: dict[str, Any] | None = Field(None, description="or corners inline: freecal.observations/1")
+    method: str = Field("auto", description="a method name ('auto', the default, chooses the model that best "
+                        "predicts views left out of its fit), or 'compare' for all methods")
+    settings: dict[str, Any] = Field(default_factory=dict, description="the method's settings, e.g. "
+                                     "{\"knots\": \"uniform\", \"intervals\": [8, 8], \"lambda_smooth\": 0.1}")
+
+    @model_validator(mode="after")
+    def one_input(self) -> JobCreate:
+        if (self.set_id is None) == (self.observations is None):
+            raise ValueError("give exactly one of set_id (an uploaded image set) or observations "
+                             "(a freecal.observations/1 document)")
+        return self
+
+
+class Timings(BaseModel):
+    queued_seconds: float | None = Field(None, description="from creation to the (first) start")
+    run_seconds: float | None = Field(None, description="from the start to the end (or now)")
+    stages: dict[str, float] = Field(default_factory=dict, description="seconds per stage of the last run")
+
+
+class JobPublic(BaseModel):
+    id: str
+    kind: Literal["detect", "calibrate"]
+    set_id: str | None
+    method: str | None
+    settings: dict[str, Any]
+    state: JobState
+    stage: str | None = Field(description="detect, initialise, knots, control points, joint optimisation, metrics ...")
+    progress: float = Field(description="0-100 %")
+    error: str | None = Field(description="why it failed, in plain words")
+    attempts: int
+    cancel_requested: bool
+    worker: str | None
+    created_at: datetime
+    started_at: datetime | None
+    finished_at: datetime | None
+    timings: Timings
+    summary: dict[str, Any]
+    downloads: dict[str, str] = Field(description="result file name → URL")
+
+
+class JobsPublic(BaseModel):
+    jobs: list[JobPublic]
+    count: int
+
+
+class MethodsPublic(BaseModel):
+    methods: list[str]
+    compare: bool = Field(description="whether method 'compare' (every method, cross-validated) is available")
+
+
+class Health(BaseModel):
+    status: Literal["ok", "degraded"] = Field(description="degraded: the service answers, but something in "
+                                                          "`problems` keeps jobs or writes from working")
+    problems: list[str] = Field(default_factory=list, description="what is wrong and what to do, in plain words")
+    version: str
+    queue: Literal["sqlite", "redis"]
+    workers: int = Field(description="workers heard from within the lease time")
+    workers_expected: int = Field(description="workers the service should have (FREECAL_WORKERS)")
+    storage_writable: bool = Field(True, description="whether the data directory takes writes now "
+                                                     "(reads work either way)")
+    jobs: dict[str, int] = Field(description="jobs by state")
+    queue_available: bool = Field(True, description="whether the queue takes jobs now (Redis reachable)")
+    queue_error: str | None = Field(None, description="why not, when it does not")

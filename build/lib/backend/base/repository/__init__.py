@@ -1,0 +1,1 @@
+"""Reads and writes of the metadata tables, one module per table family."""

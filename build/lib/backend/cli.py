@@ -1,0 +1,44 @@
+"""The ``freecal`` command: one sub-command per module in ``backend/commands``.
+
+Errors a user can cause (``CalibError``) print one line saying what to do and
+exit with status 2; never a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from calib_core.errors import CalibError
+
+from .commands import COMMANDS
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="freecal",
+        description="Camera calibration for lenses that defy the textbook models.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for module in COMMANDS:
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.run(args) or 0)
+    except CalibError as exc:
+        print(f"freecal {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # output piped into head, less...: not an error
+        sys.stdout = open(os.devnull, "w")
+        return 0
+    except KeyboardInterrupt:
+        print(f"freecal {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,228 @@
+"""freecal calibrate OBS.json [--method auto] -o CAL.json [settings]
+freecal calibrate IMAGES_OR_DIR... --board SPEC ... (detects first, then calibrates)"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+from pathlib import Path
+
+from calib_core import Observations, calibrate
+from calib_core.detection.detect import IMAGE_SUFFIXES
+from calib_core.errors import SettingsError
+
+from .detect import BOARD_HELP, detect_with_report
+from .output import StageProgress, print_json, table
+
+
+def _pair(text: str) -> tuple[int, int]:
+    """'8' or '8x10' → (8, 8) or (8, 10)."""
+    try:
+        parts = [int(p) for p in text.lower().split("x")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected N or NxM, got {text!r}") from None
+    if len(parts) == 1:
+        parts *= 2
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"expected N or NxM, got {text!r}")
+    return parts[0], parts[1]
+
+
+def _intervals(text: str):
+    return "auto" if text == "auto" else _pair(text)
+
+
+def _number_or_auto(text: str):
+    if text == "auto":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or auto, got {text!r}") from None
+
+
+# (flag, settings key, type, help); only the flags given reach the method.
+BSPLINE_FLAGS = [
+    ("--core", "core", str, "parametric core under the field: none (the paper's model), rational, fisheye"),
+    ("--knots", "knots", str, "knot strategy: kde, kde-paper (the paper's candidates only), uniform"),
+    ("--intervals", "intervals", _intervals, "knot intervals per direction: N, NxM or auto (validation over views)"),
+    ("--max-intervals", "max_intervals", int, "cap of knot intervals per direction (kde)"),
+    ("--min-support", "min_support", int, "minimum corners per knot interval (default max(10, N/50))"),
+    ("--bandwidth", "bandwidth", str, "KDE bandwidth rule: scott or silverman"),
+    ("--bandwidth-factor", "bandwidth_factor", _number_or_auto,
+     "KDE bandwidth multiplier (Table 2: 1.0), or auto (validation over views, with the intervals)"),
+    ("--window-ratio", "window_ratio", float, "local-std window ratio rho"),
+    ("--weighting", "weighting", str, "sample weights: local_std, uniform, magnitude, gradient"),
+    ("--lambda-reg", "lambda_reg", float, "L2 weight on control values"),
+    ("--lambda-smooth", "lambda_smooth", _number_or_auto, "bending-energy weight of the field, or auto (validation over views)"),
+    ("--time-budget", "time_budget", float, "seconds the search over knot grids and bandwidths may take "
+                                            "(default: no limit)"),
+    ("--base", "base", str, "base projection: pinhole, equidistant, stereographic"),
+    ("--max-iterations", "max_iterations", int, "Levenberg-Marquardt iteration cap"),
+    ("--ftol", "ftol", float, "relative cost decrease that ends the solve"),
+]
+
+
+def register(sub) -> None:
+    p = sub.add_parser("calibrate", help="calibrate from observations (corners) JSON, or from images",
+                       description="Calibrate a camera from freecal.observations/1 corners, or from photos "
+                                   "(with --board: detect the board first, then calibrate).")
+    p.add_argument("observations", nargs="+", metavar="OBS.json | IMAGES",
+                   help="freecal.observations/1 JSON file, or image files and/or folders (with --board)")
+    p.add_argument("--board", help="detect this board in the images first; " + BOARD_HELP)
+    p.add_argument("--workers", type=int, default=None, help="detection worker processes (default: all cores)")
+    p.add_argument("--method", default="auto", metavar="METHOD",
+                   help="calibration method: auto (the default: the candidate that best predicts views left out "
+                        "of its fit), bspline (the paper's field; settings below), zhang, rational, fisheye, mls, tps")
+    p.add_argument("-o", "--output", help="write the freecal.calibration/1 JSON here")
+    p.add_argument("--json", action="store_true", help="print the calibration JSON instead of a summary")
+    p.add_argument("--report", metavar="DIR",
+                   help="write the report the results page shows into DIR: residual tables (JSON, CSV), heatmap, "
+                        "distortion field, knot grid, projection uncertainty, and their figures (PNG)")
+    p.add_argument("--outlier-sigma", type=float, default=5.0,
+                   help="reject residuals beyond this many robust sigmas (0: keep all)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="any other method setting, e.g. --set lambda_smooth=0.5")
+    for flag, key, typ, text in BSPLINE_FLAGS:
+        p.add_argument(flag, dest=key, type=typ, default=None, help=text)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(run=run)
+
+
+def settings_of(args) -> dict:
+    given = [flag for flag, key, _, _ in BSPLINE_FLAGS if getattr(args, key) is not None]
+    if given and args.method != "bspline":
+        raise SettingsError(f"{', '.join(given)} set the B-spline field: add --method bspline (--method {args.method} "
+                            + ("chooses the model, knot grid and smoothing itself)" if args.method == "auto" else
+                               "takes its settings with --set KEY=VALUE)"))
+    settings = {key: getattr(args, key) for _, key, _, _ in BSPLINE_FLAGS if getattr(args, key) is not None}
+    for item in args.set:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise SettingsError(f"--set {item!r}: expected KEY=VALUE")
+        settings[key.strip()] = _value(value.strip())
+    return settings
+
+
+def _value(text: str):
+    for cast in (int, float):
+        try:
+            return cast(text)
+        except ValueError:
+            pass
+    return text
+
+
+def observations_of(args) -> Observations:
+    """The observations JSON, or (with --board) the corners detected in the images given."""
+    if args.board:
+        # With --json, stdout carries the calibration alone: the detection report goes to stderr.
+        with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
+            det = detect_with_report(args.observations, args.board, args.quiet or args.json, args.workers)
+            print()
+        return det.observations
+    first = Path(args.observations[0])
+    if len(args.observations) != 1 or first.is_dir() or first.suffix.lower() in IMAGE_SUFFIXES:
+        raise SettingsError("to calibrate from images, say which board they show: --board SPEC "
+                            "(e.g. chessboard:9x6:25mm); otherwise give one observations JSON file")
+    return Observations.load(args.observations[0])
+
+
+def run(args) -> int:
+    obs = observations_of(args)
+    cal = calibrate(obs, args.method, progress=StageProgress(args.quiet or args.json),
+                    outlier_sigma=args.outlier_sigma, **settings_of(args))
+    if args.output:
+        cal.save(args.output)
+    written = write_report(Path(args.report), cal, obs) if args.report else []
+    if args.json:
+        print_json(cal.to_json())
+    else:
+        print_summary(cal)
+        if args.output:
+            print(f"\nwrote {args.output}")
+        if written:
+            print(f"wrote the report into {args.report}: {', '.join(written)}")
+    return 0
+
+
+def write_report(folder: Path, cal, obs: Observations) -> list[str]:
+    """The results page's products and their figures, as files in ``folder``."""
+    import json
+
+    from calib_core.calibration import json_safe
+    from calib_core.report import figures, tables
+
+    products = tables.report_files(cal, obs)
+    products["knot_cells.json"] = tables.knot_cells(cal, products["corner_residuals.json"])
+    products["uncertainty.json"] = tables.uncertainty_map(cal, obs)
+    files = {name: content for name, content in products.items() if content is not None}
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, content in files.items():
+        if isinstance(content, str):
+            (folder / name).write_text(content)
+        else:
+            (folder / name).write_text(json.dumps(json_safe(content), indent=1 if name == "calibration.json" else None))
+    for name, png in figures.report_figures(products).items():
+        (folder / name).write_bytes(png)
+        files[name] = png
+    return sorted(files)
+
+
+def print_summary(cal) -> None:
+    m, d = cal.metrics, cal.diagnostics
+    fx, fy, cx, cy, s = cal.model.intrinsics
+    print(f"method {cal.method}: fx={fx:.3f} fy={fy:.3f} cx={cx:.3f} cy={cy:.3f} skew={s:.4f} (pixels)")
+    if "model_choice" in d:
+        print_choice(d["model_choice"])
+    if "restart" in d:
+        r = d["restart"]
+        print(f"restarted from a parametric camera: {r['reason']}; kept the {r['kept']} fit "
+              f"({r['first']['rmse']:.3f} px first, {r['restarted']['rmse']:.3f} px restarted)")
+        if "warning" in r:
+            print(f"warning: {r['warning']}")
+    if "design" in d:
+        g = d["design"]
+        print(f"knot intervals {g['intervals'][0]} x {g['intervals'][1]}, design rank {g['rank']}/{g['n_controls']}, "
+              f"zero columns {g['zero_columns']}")
+    curve = d.get("smoothing_curve")
+    if curve:
+        print("knot grid, bandwidth and smoothing chosen by how well the field predicts views left out of its fit "
+              "(lower is better):")
+        chosen = [cal.settings.get("intervals_used"), cal.settings.get("bandwidth_factor_used")]
+        table(["grid", "bandwidth factor", "lambda_smooth", "validation [px^2]", "effective parameters", "chosen"],
+              [_curve_row(c, chosen) for c in curve])
+    sv = d.get("solver", {})
+    print(f"solver: {sv.get('status')} after {sv.get('iterations')} iterations ({sv.get('message')}), "
+          f"{sv.get('seconds', 0):.2f} s")
+    print()
+    rows = [(v.name, v.n_points, v.rmse, v.rmse_axis, len(v.outliers)) for v in cal.views]
+    rows.append(("overall", m["n_points"], m["rmse"], m["rmse_axis"], sum(len(v.outliers) for v in cal.views)))
+    table(["view", "points", "rmse [px]", "rmse_axis [px]", "outliers"], rows)
+    print(f"\ncentre rmse {m['rmse_center']:.4f} px, edge rmse {m['rmse_edge']:.4f} px")
+    for dv in cal.dropped_views:
+        print(f"dropped {dv['name']}: {dv['reason']}")
+
+
+def print_choice(choice: dict) -> None:
+    """The model choice in words, and the score table that made it."""
+    print(f"model chosen: {choice['summary']}")
+    print(f"rule: {choice['rule']}; {choice['how']}")
+    table(["candidate", "validation rmse per axis [px]", "± one standard error of its excess", "parameters", "chosen"],
+          [(c["label"], _or_dash(c["validation_rmse"]), _or_dash(c.get("standard_error_rmse")), c["n_params"] or "—",
+            "*" if c["chosen"] else c.get("error", "") or ("within the noise" if c.get("within_noise") else ""))
+           for c in choice["candidates"]])
+
+
+def _or_dash(x):
+    return "—" if x is None else x
+
+
+def _curve_row(c: dict, chosen: list) -> tuple:
+    grid = "x".join(map(str, c["intervals"]))
+    factor = c.get("bandwidth_factor")  # absent from calibrations made before it was chosen
+    shown = "—" if factor is None else f"{factor:g}"
+    if "skipped" in c:
+        return grid, shown, "—", "—", "—", f"skipped ({c['skipped']})"
+    return (grid, shown, c["lambda_smooth"], c["cv"], f"{c['dof']:.0f}",
+            "*" if [c["intervals"], factor] == chosen else "")

@@ -1,0 +1,76 @@
+"""freecal undistort CAL.json [IMAGES...] -o DIR [--alpha A | --keep valid|all | --focal F] [--size WxH] [--maps]"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from calib_core import Calibration
+from calib_core.errors import SettingsError
+from calib_core.products.rectify import (
+    RectifyError,
+    fixed_camera,
+    rectified_camera,
+    rectify_image,
+    save_maps,
+    undistort_maps,
+)
+
+KEEP = {"valid": 0.0, "all": 1.0}
+
+
+def register(sub) -> None:
+    p = sub.add_parser("undistort", help="rectified images and undistortion maps of a calibration",
+                       description="Rectify photos to an ideal pinhole camera (any calibration method), and "
+                                   "export the maps (maps.npz; map_x.tiff/map_y.tiff float32 for cv2.remap).")
+    p.add_argument("calibration", help="freecal.calibration/1 JSON file")
+    p.add_argument("images", nargs="*", help="photos to rectify (the calibration's image size)")
+    p.add_argument("-o", "--output", required=True, help="output directory")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--keep", choices=sorted(KEEP), help="valid: only pixels with a source (default); all: every photo pixel")
+    g.add_argument("--alpha", type=float, help="between 0 (valid) and 1 (all), like OpenCV's alpha / fisheye balance")
+    g.add_argument("--focal", type=float, help="a given focal length [px] of the rectified camera (centred)")
+    p.add_argument("--size", help="rectified image size WxH (default: the photo's)")
+    p.add_argument("--maps", action="store_true", help="also write the maps (always written when no images are given)")
+    p.set_defaults(run=run)
+
+
+def parse_size(text: str | None) -> tuple[int, int] | None:
+    if not text:
+        return None
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise SettingsError(f"--size: expected WIDTHxHEIGHT such as 1024x1280, got {text!r}") from None
+    return w, h
+
+
+def run(args) -> int:
+    import cv2
+
+    cal = Calibration.load(args.calibration)
+    size = parse_size(args.size)
+    if args.focal is not None:
+        camera = fixed_camera(args.focal, size or cal.image_size)
+    else:
+        alpha = args.alpha if args.alpha is not None else KEEP[args.keep or "valid"]
+        camera = rectified_camera(cal, alpha, size)
+    maps = undistort_maps(cal, camera)
+    out = Path(args.output)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "rectified_camera.json").write_text(json.dumps(camera.to_json(), indent=1) + "\n")
+    written = [out / "rectified_camera.json"]
+    if args.maps or not args.images:
+        written += save_maps(out, *maps, camera)
+    for name in args.images:
+        image = cv2.imread(name, cv2.IMREAD_UNCHANGED)
+        if image is None:
+            raise RectifyError(f"{name}: not an image OpenCV can read")
+        target = out / Path(name).name
+        if not cv2.imwrite(str(target), rectify_image(cal, image, camera, maps)):
+            raise RectifyError(f"could not write {target}")
+        written.append(target)
+    print(f"rectified camera: focal {camera.focal:.3f} px, centre ({camera.cx:.3f}, {camera.cy:.3f}), "
+          f"{camera.width} x {camera.height}")
+    for path in written:
+        print(f"wrote {path}")
+    return 0

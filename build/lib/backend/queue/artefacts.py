@@ -1,0 +1,63 @@
+"""The result files of a finished job, computed once by the worker and stored.
+
+Every file is derived from the calibration and the observations it was fitted
+to (``calib_core.report``), so results survive restarts and reads
+cost nothing. Names here are the download names of ``/api/jobs/{id}/{name}``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from calib_core import Calibration, Observations
+from calib_core.calibration import json_safe
+from calib_core.report.tables import report_files, to_csv
+
+from ..base import storage
+
+
+def write_calibration(out: Path, cal: Calibration, obs: Observations) -> list[str]:
+    """calibration.json and everything derived from it; returns the file names written."""
+    return _write(out, report_files(cal, obs))
+
+
+def write_comparison(out: Path, result: dict[str, Any], obs: Observations,
+                     best: Calibration | None = None) -> list[str]:
+    """A compare job: the comparison table, plus the winner's calibration files when there is one."""
+    names = write_calibration(out, best, obs) if best is not None else []
+    names += _write(out, {"comparison.json": result, "comparison.csv": to_csv(comparison_rows(result))})
+    return sorted(set(names))
+
+
+def summary(cal: Calibration) -> dict[str, Any]:
+    return json_safe({"method": cal.method, "metrics": cal.metrics, "n_views": len(cal.views),
+                      "dropped_views": len(cal.dropped_views)})
+
+
+def compare_summary(result: dict[str, Any]) -> dict[str, Any]:
+    return json_safe({"methods": list(result["methods"]), "verdict": result.get("verdict"),
+                      "verdict_detail": result.get("verdict_detail")})
+
+
+def comparison_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
+    """``compare()``'s methods as flat rows (nested figures as ``a.b`` columns)."""
+    return [_flat({"method": name, **entry}) for name, entry in result["methods"].items()]
+
+
+def _write(out: Path, files: dict[str, Any]) -> list[str]:
+    for name, content in files.items():
+        if isinstance(content, str):
+            storage.write_text(out / name, content)
+        else:
+            storage.write_json(out / name, json_safe(content), indent=1 if name == "calibration.json" else None)
+    return sorted(files)
+
+
+def _flat(row: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in row.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        elif v is None or isinstance(v, (str, int, float, bool)):
+            out[prefix + k] = json_safe(v)
+    return out

@@ -1,0 +1,52 @@
+"""A calibration job: observations in, calibration and its result files out.
+
+A thin wrapper: ``calib_core.calibrate`` (one method) or
+``calib_core.evaluation.compare.compare`` (every method), then ``artefacts.write_all``.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from calib_core import Observations, calibrate
+from calib_core.errors import DataError
+
+from ..base.context import Context
+from . import artefacts
+from .lease import JobRun
+
+COMPARE = "compare"
+COMPARE_KEYS = ("methods", "splits")
+
+
+def load_input(ctx: Context, job: dict[str, Any]) -> Observations:
+    inline = ctx.storage.job_dir(job["id"]) / "input.json"
+    if inline.exists():
+        return Observations.load(inline)
+    path = ctx.storage.observations_path(job["set_id"] or "")
+    if not path.exists():
+        raise DataError("the image set has no corners yet (or was deleted): wait until its detection is done, "
+                        "or upload an observations JSON")
+    return Observations.load(path)
+
+
+def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
+    run.progress("load", 0.0)
+    obs = load_input(ctx, job)
+    settings = dict(job["settings"])
+    out = ctx.storage.job_dir(job["id"])
+    if job["method"] == COMPARE:
+        from calib_core.evaluation.compare import compare
+
+        kwargs = {k: settings[k] for k in COMPARE_KEYS if k in settings}
+        result = compare(obs, progress=lambda s, f: run.progress(s, f, 0.0, 0.85), **kwargs)
+        best = None
+        if result.get("verdict"):
+            # compare() keeps only figures: fit the winner on every view for its files
+            best = calibrate(obs, result["verdict"], progress=lambda s, f: run.progress(s, f, 0.85, 0.97))
+        run.progress("metrics", 0.0, 0.97, 1.0)
+        names = artefacts.write_comparison(out, result, obs, best)
+        return {"artefacts": names, "summary": artefacts.compare_summary(result)}
+    cal = calibrate(obs, job["method"], progress=lambda s, f: run.progress(s, f, 0.0, 0.97), **settings)
+    run.progress("metrics", 0.0, 0.97, 1.0)
+    names = artefacts.write_calibration(out, cal, obs)
+    return {"artefacts": names, "summary": artefacts.summary(cal)}

@@ -1,0 +1,91 @@
+"""A detection job: a set's images → corners (``observations.json``) and a report per image.
+
+Images go to ``calib_core.detection.detect.detect_images`` in batches so each image's
+status reaches the database (and the API) as soon as its batch is done.
+Coverage and its warning are computed over the merged views with
+``calib_core.evaluation.coverage`` (what ``detect_images`` itself reports for one batch).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from calib_core import Observations
+from calib_core.errors import DataError
+
+from ..base import storage
+from ..base.context import Context
+from ..base.repository import sets
+from .lease import JobRun
+
+BATCHES = 8             # status updates per set; each batch still runs on every core
+
+
+def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
+    from calib_core.board import BoardSpec
+    from calib_core.detection.detect import detect_images
+
+    set_id = job["set_id"]
+    row = sets.get(ctx.db, set_id)
+    if row is None:
+        raise DataError("the image set was deleted")
+    board = BoardSpec.parse(job["settings"]["board"])
+    folder = ctx.storage.images_dir(set_id)
+    names = [im["name"] for im in row["images"]]
+    sets.reset_images(ctx.db, set_id)
+    size = max(1, math.ceil(len(names) / BATCHES))
+    views, warnings, image_size = [], [], None
+    run.progress("detect", 0.0)
+    for start in range(0, len(names), size):
+        batch = names[start:start + size]
+        done = start
+
+        def progress(k: int, total: int, done=done) -> None:  # detect_images: after each image
+            run.progress("detect", (done + k) / len(names))
+
+        det = detect_images([folder / n for n in batch], board, progress=progress)
+        reports = [_report(r) for r in det.reports]
+        if det.observations is not None:
+            if image_size is None:
+                image_size = tuple(det.observations.image_size)
+            # detect_images keeps one size per call; across batches that is ours to check
+            if tuple(det.observations.image_size) == image_size:
+                views += det.observations.views
+            else:
+                bad = {v.name for v in det.observations.views}
+                for r in reports:
+                    if r["name"] in bad:
+                        r.update(status="rejected", reason=f"image size {det.observations.image_size} differs "
+                                 f"from the set's {list(image_size)}: one camera per set")
+        warnings += [w for w in det.warnings if w not in warnings]
+        sets.record_reports(ctx.db, set_id, reports)
+        run.progress("detect", (start + len(batch)) / len(names))
+    coverage, warning = measure_coverage(views, image_size)
+    warnings = [w for w in warnings if not w.startswith("no corners in the ")]  # per batch: superseded
+    if warning:
+        warnings.append(warning)
+    sets.record_detection(ctx.db, set_id, None if image_size is None else list(image_size), coverage,
+                          warnings, len(views))
+    if not views:
+        raise DataError("the board was found in none of the images: check the board spec "
+                        "(inner corners, e.g. chessboard:9x6:25mm) and the image focus")
+    obs = Observations(image_size, views, board.to_json())
+    storage.write_json(ctx.storage.observations_path(set_id), obs.to_json())
+    return {"artefacts": ["observations.json"], "summary": {"n_views": len(views), "n_images": len(names)}}
+
+
+def _report(r: Any) -> dict[str, Any]:
+    keys = ("name", "status", "n_corners", "reason", "sharpness", "width", "height")
+    d = r if isinstance(r, dict) else {k: getattr(r, k, None) for k in keys}
+    return {k: d.get(k) for k in keys}
+
+
+def measure_coverage(views: list, image_size: tuple[int, int] | None) -> tuple[dict[str, Any] | None, str | None]:
+    from calib_core.evaluation.coverage import coverage, coverage_warning
+
+    if not views or image_size is None:
+        return None, None
+    cov = coverage(np.concatenate([v.image_points for v in views]), image_size)
+    return cov, coverage_warning(cov)

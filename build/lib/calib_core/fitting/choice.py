@@ -1,0 +1,118 @@
+"""Choosing among models by how well they predict views they have not seen.
+
+One rule for every choice between models (``method="auto"``'s candidates,
+a field's knot grids, ``compare``'s verdict): each candidate's validation
+error per view, summed over the folds that left that view out; the lowest
+mean error per corner; and the simplest candidate (candidates come simplest
+first) within the noise of it: its excess over the lowest, view by view, no
+more than one standard error of that excess (the one-standard-error rule of
+Hastie, Tibshirani & Friedman, §7.10, on paired differences, as every
+candidate is scored on the same views and so shares their noise). A small or
+uneven set has a large standard error and so gets the simpler model.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+RULE = ("the simplest candidate whose excess over the lowest validation error, view by view, is within one "
+        "standard error of that excess (the one-standard-error rule on paired differences; candidates are listed "
+        "simplest first)")
+
+
+@dataclass
+class Candidate:
+    """One model's validation: ``view_sse`` (n_views,) squared left-out
+    residuals per view (px², both axes), or None with the ``error`` that kept
+    it out."""
+
+    name: str
+    label: str
+    view_sse: np.ndarray | None = None
+    error: str = ""
+    n_params: int | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class ModelChoice:
+    candidates: list[Candidate]
+    counts: np.ndarray  # (n_views,) corners validated per view
+    chosen: int
+    best: int  # lowest validation error
+    excess_se: np.ndarray  # (n_candidates,) standard error of each one's mean excess over the lowest (px² per corner)
+    how: str = ""  # how the errors were measured, in words
+
+    @property
+    def name(self) -> str:
+        return self.candidates[self.chosen].name
+
+    def mse(self, k: int) -> float:
+        c = self.candidates[k]
+        return np.inf if c.view_sse is None else float(c.view_sse.sum() / self.counts.sum())
+
+    def rmse(self, k: int) -> float:
+        """Validation rmse per axis (px), as ``rmse_axis`` elsewhere."""
+        return float(np.sqrt(self.mse(k) / 2))
+
+    def within_noise(self, k: int) -> bool:
+        return bool(self.mse(k) - self.mse(self.best) <= self.excess_se[k])
+
+    def _as_rmse(self, excess: float) -> float | None:
+        """An excess in mean squared error, as the rmse per axis it adds to the
+        lowest's; None (JSON null) when the excess is not finite."""
+        best = self.mse(self.best)
+        return float(np.sqrt((best + excess) / 2) - np.sqrt(best / 2)) if np.isfinite(excess) else None
+
+    def summary(self) -> str:
+        c = self.candidates[self.chosen]
+        if self.chosen == self.best:
+            why = "it predicts the views left out of its fit best"
+        else:
+            b = self.candidates[self.best]
+            why = (f"it predicts the views left out of its fit as well as the {b.label} "
+                   f"({self.rmse(self.chosen):.4f} against {self.rmse(self.best):.4f} px per axis, within the "
+                   f"noise of the difference) and is simpler")
+        return f"{c.label}: {why}"
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "chosen": self.name,
+            "summary": self.summary(),
+            "rule": RULE,
+            "how": self.how,
+            "n_views": int(len(self.counts)),
+            "n_points": int(self.counts.sum()),
+            "candidates": [
+                {"name": c.name, "label": c.label, "chosen": k == self.chosen,
+                 "validation_rmse": None if c.view_sse is None else self.rmse(k),
+                 "validation_mse": None if c.view_sse is None else self.mse(k),
+                 # one standard error of its excess over the lowest, as rmse per axis: the band within which it
+                 # counts as equally good
+                 "standard_error_rmse": None if c.view_sse is None else self._as_rmse(float(self.excess_se[k])),
+                 "within_noise": None if c.view_sse is None else self.within_noise(k),
+                 "n_params": c.n_params, **({"error": c.error} if c.error else {}), **c.extra}
+                for k, c in enumerate(self.candidates)],
+        }
+
+
+def choose(candidates: list[Candidate], counts: np.ndarray, how: str = "") -> ModelChoice:
+    """The one-standard-error choice among ``candidates`` (simplest first),
+    on paired per-view differences; ValueError if none was validated."""
+    counts = np.asarray(counts, dtype=float)
+    scores = np.array([np.inf if c.view_sse is None else c.view_sse.sum() / counts.sum() for c in candidates])
+    if not np.isfinite(scores).any():
+        raise ValueError("no candidate could be validated")
+    best = int(np.argmin(scores))
+    n = len(counts)
+    excess_se = np.full(len(candidates), np.inf)
+    for k, c in enumerate(candidates):
+        if c.view_sse is not None:
+            excess = (c.view_sse - candidates[best].view_sse) * n / counts.sum()  # its mean is the excess per corner
+            excess_se[k] = np.std(excess, ddof=1) / np.sqrt(n) if n > 1 else np.inf
+    excess_se[best] = 0.0
+    choice = ModelChoice(candidates, counts, best, best, excess_se, how)
+    choice.chosen = next(k for k in range(len(candidates)) if choice.mse(k) < np.inf and choice.within_noise(k))
+    return choice

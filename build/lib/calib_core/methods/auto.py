@@ -1,0 +1,193 @@
+"""``method="auto"``, the default: the model the corners support, chosen by
+how well each candidate predicts views left out of its fit.
+
+Candidates, simplest first: OpenCV's 5-coefficient model, Kannala–Brandt,
+the rational model, the paper's B-spline field, and a field over the
+rational core. A lens past the pinhole's reach (corners beyond ~89° off
+axis) gets Kannala–Brandt and a field over it instead, the only models that
+represent every corner. Every candidate that can fit the corners is scored
+on each view left out of its fit (``crossval.linearised_view_errors``; a
+field over a core holds the core's coefficients there as its fit does, as
+fitted to every view, which flatters it a little on very small sets) and
+the simplest within the noise of the lowest is kept (``choice.choose``); it is returned as its own method returns it, so
+the calibration is written with that model's type (``opencv``, ``fisheye``,
+``bspline``, ``hybrid``) and ``settings.chosen`` names it.
+
+Whether a core or a field pays is a property of the lens, not of the number
+of views: on a large set it is decided on ``decision_views`` of them, and only
+the chosen model is fitted to all.
+"""
+from __future__ import annotations
+
+import dataclasses
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import ranges
+from ..errors import DataError
+from ..fitting.choice import Candidate, ModelChoice, choose
+from ..fitting.crossval import linearised_view_errors
+from ..fitting.init import initialise
+from ..fitting.solve import Data, spread_views
+from .bspline import BSplineSettings, fit_core, fit_field, ideal_samples
+from .common import Fit, Progress, no_progress, scaled
+
+
+@dataclass
+class AutoSettings:
+    decision_views: int = 20  # above this many views, the choice is made on this many (spread over the set)
+
+    def validate(self) -> None:
+        ranges.whole("decision_views", self.decision_views, 3, 1000)
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A candidate: ``core`` fitted alone (None: no parametric core), and a
+    field over it (``field``: the core's name, "none" for the paper's field
+    on ideal pixels; None: the core alone)."""
+
+    name: str
+    label: str
+    core: str | None
+    field: str | None
+
+
+CANDIDATES = (Spec("zhang", "OpenCV 5-coefficient model", "zhang", None),
+              Spec("fisheye", "Kannala-Brandt model", "fisheye", None),
+              Spec("rational", "OpenCV rational model", "rational", None),
+              Spec("bspline", "B-spline field (the paper's model)", None, "none"),
+              Spec("hybrid-rational", "B-spline field over the rational model", "rational", "rational"))
+WIDE_CANDIDATES = (Spec("fisheye", "Kannala-Brandt model", "fisheye", None),
+                   Spec("hybrid-fisheye", "B-spline field over the Kannala-Brandt model", "fisheye", "fisheye"))
+
+
+def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit:
+    init = initialise(data, image_size)
+    _, seen = ideal_samples(init.model, init.poses, data, "pinhole")
+    wide = not seen.all()
+    specs = WIDE_CANDIDATES if wide else CANDIDATES
+    sample = data if data.n_views <= s.decision_views else spread_views(data, s.decision_views)
+    initialise(sample, image_size)  # cached, before the candidates share it from two threads
+    share = 1.0 if sample is data else 0.6
+    fits, why_not = _fit_candidates(specs, sample, image_size, scaled(progress, 0.0, 0.8 * share))
+    if all(f is None for f in fits):
+        raise DataError("no model fits these corners: " + "; ".join(dict.fromkeys(e for e in why_not if e)))
+    progress("model choice", 0.8 * share)
+    choice = _validate(specs, fits, why_not, sample)
+    if wide:
+        choice.how += f"; {int((~seen).sum())} corners lie past the pinhole's reach, so only models that reach them ran"
+    if sample is not data:
+        choice.how += f"; decided on {sample.n_views} of the {data.n_views} views"
+    spec = specs[choice.chosen]
+    fit = fits[choice.chosen]
+    if sample is not data:  # the chosen model on every view, with the grid and smoothing the choice found
+        grid = {} if spec.field is None else {"intervals": tuple(fit.settings["intervals_used"]),
+                                              "lambda_smooth": float(fit.settings["lambda_smooth"])}
+        fit = _fit_spec(spec, data, image_size, {}, scaled(progress, share, 1.0), **grid)
+    settings = {**fit.settings, "chosen": spec.name, "decision_views": s.decision_views}
+    return dataclasses.replace(fit, settings=settings, diagnostics={**fit.diagnostics, "model_choice": choice.to_json()})
+
+
+def _fit_spec(spec: Spec, data: Data, image_size, cores: dict[str, Fit | None], progress: Progress,
+              **field_settings) -> Fit:
+    """One candidate fitted to ``data`` (``cores``: its core fitted alone, if
+    done; ``field_settings``: the field's, default its own search)."""
+    core_fit = None if spec.core is None else cores.get(spec.core)
+    if spec.field is not None:
+        s = BSplineSettings(core=spec.field, **field_settings)
+        s.validate()
+        return fit_field(data, image_size, s, spec.field, progress, core_fit)
+    if spec.core is None:
+        raise ValueError(f"candidate {spec.name!r} has neither a core nor a field")
+    return core_fit or fit_core(data, image_size, spec.core, progress)
+
+
+def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
+    """Each candidate's fit (None if it cannot fit these corners) and why
+    not. A candidate with no parametric core (the paper's field) depends on
+    no other: it runs on the second core meanwhile (the heavy parts, the
+    compiled kernels and LAPACK, release the GIL), reporting no progress of
+    its own."""
+    why_not = [""] * len(specs)
+    cores: dict[str, Fit | None] = {}
+    fits: list[Fit | None] = [None] * len(specs)
+    alone = [i for i, spec in enumerate(specs) if spec.core is None]
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        background = {i: pool.submit(_try, why_not, i, _fit_spec, specs[i], sample, image_size, {}, no_progress)
+                      for i in alone}
+        for i, spec in enumerate(specs):
+            if i in background:
+                continue
+            part = scaled(progress, i / len(specs), (i + 1) / len(specs))
+            if spec.core not in cores:
+                cores[spec.core] = _try(why_not, i, fit_core, sample, image_size, spec.core, part, cores.get("zhang"))
+            if cores[spec.core] is None:
+                why_not[i] = why_not[i] or f"its {spec.core} core cannot fit these corners"
+                continue
+            fits[i] = _try(why_not, i, _fit_spec, spec, sample, image_size, cores, part)
+        for i, future in background.items():
+            fits[i] = future.result()
+    return fits, why_not
+
+
+def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -> ModelChoice:
+    """Each candidate's error on each view left out of its fit
+    (``crossval.linearised_view_errors``), on the corners every candidate
+    could use, and the one-standard-error choice among them."""
+    kept = np.logical_and.reduce([~f.excluded for f in fits if f is not None])
+    counts = np.bincount(sample.view_index[kept], minlength=sample.n_views)
+    candidates = []
+    core_steps: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # core → (its free parameters, their moves per view)
+    for spec, fit, reason in zip(specs, fits, why_not, strict=True):
+        errors = None
+        if fit is not None:
+            used = ~fit.excluded
+            own = sample.points(used)
+            model = fit.result.model
+            try:
+                held = _held_steps(model, core_steps.get(spec.core)) if spec.field is not None else None
+                lovo = linearised_view_errors(model, fit.result.poses, own, kept[used], held)
+                errors = lovo.errors
+                if spec.field is None:
+                    core_steps[spec.core] = (np.flatnonzero(_free(model)), lovo.steps)
+            except np.linalg.LinAlgError:
+                reason = "its fit without some view is undetermined"
+        candidates.append(Candidate(spec.name, spec.label, errors, reason,
+                                    None if fit is None else int(np.sum(_free(fit.result.model)))))
+    how = (f"error per axis on each of the {sample.n_views} views left out of the fit (one Gauss-Newton step "
+           "from the full fit without the view, then only the view's pose refit)")
+    return choose(candidates, counts, how=how)
+
+
+def _held_steps(model, core: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray | None:
+    """A field over a core holds the core's coefficients where the core's own
+    fit put them: their move when each view leaves that fit, as
+    ``linearised_view_errors`` takes it (None when the core was not scored)."""
+    if core is None:
+        return None
+    free_in_core, steps = core
+    column = {p: j for j, p in enumerate(free_in_core)}
+    held = np.flatnonzero(~_free(model))  # a hybrid's parameters start with its core's
+    out = np.zeros((len(steps), len(held)))
+    for k, p in enumerate(held):
+        if p in column:
+            out[:, k] = steps[:, column[p]]
+    return out
+
+
+def _free(model) -> np.ndarray:
+    mask = model.free_mask()
+    return np.ones(model.n_params, dtype=bool) if mask is None else mask
+
+
+def _try(why_not: list[str], i: int, fit_fn, *args):
+    """``fit_fn(*args)``, or None (and why, in ``why_not[i]``) if the model
+    cannot fit these corners."""
+    try:
+        return fit_fn(*args)
+    except (DataError, FloatingPointError, np.linalg.LinAlgError) as exc:  # too few corners, diverged, no finite start
+        why_not[i] = str(exc)
+        return None

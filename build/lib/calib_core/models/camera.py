@@ -1,0 +1,113 @@
+"""Rigid poses and the base projections of ``formats.md`` §2, with Jacobians.
+
+Conventions (OpenCV's): ``Pc = R(rvec) · P + tvec`` maps board points to the
+camera frame, x right, y down, z forward. Poses are stored as (V, 6) arrays
+``[rvec | tvec]``. The solver perturbs a pose on the left,
+``T ← exp(δ) · T`` with ``δ = (ω, ν)``, so that ``∂Pc/∂δ = [−[Pc]×  I₃]``.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+BASES = ("pinhole", "equidistant", "stereographic")
+# A pinhole maps a ray θ off axis to tan θ: past this angle the ideal image runs
+# off towards infinity, and pinhole-based models exclude such corners.
+PINHOLE_MAX_ANGLE_DEG = 85.0
+
+
+def rotate(rvecs: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Rotate points (N, 3) by rotation vectors (N, 3) or (3,)."""
+    return Rotation.from_rotvec(rvecs).apply(points)
+
+
+def transform(poses: np.ndarray, view_index: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Camera-frame points (N, 3) for board points (N, 3) seen in views ``view_index`` (N,)."""
+    p = poses[view_index]
+    return rotate(p[:, :3], points) + p[:, 3:]
+
+
+def d_transform(pc: np.ndarray) -> np.ndarray:
+    """∂Pc/∂δ for the left perturbation δ = (ω, ν): (N, 3, 6)."""
+    n = len(pc)
+    out = np.zeros((n, 3, 6))
+    x, y, z = pc[:, 0], pc[:, 1], pc[:, 2]
+    # −[Pc]× = [[0, z, −y], [−z, 0, x], [y, −x, 0]]
+    out[:, 0, 1], out[:, 0, 2] = z, -y
+    out[:, 1, 0], out[:, 1, 2] = -z, x
+    out[:, 2, 0], out[:, 2, 1] = y, -x
+    out[:, 0, 3] = out[:, 1, 4] = out[:, 2, 5] = 1.0
+    return out
+
+
+def retract_poses(poses: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """Apply left perturbations ``delta`` (V, 6): R ← exp(ω) R, t ← exp(ω) t + ν."""
+    step = Rotation.from_rotvec(delta[:, :3])
+    rot = step * Rotation.from_rotvec(poses[:, :3])
+    return np.hstack([rot.as_rotvec(), step.apply(poses[:, 3:]) + delta[:, 3:]])
+
+
+def normalise(pc: np.ndarray, base: str = "pinhole", jacobian: bool = False):
+    """Normalised coordinates (N, 2) of camera-frame points by the base projection;
+    with ``jacobian`` also ∂(xn, yn)/∂Pc (N, 2, 3)."""
+    x, y, z = pc[:, 0], pc[:, 1], pc[:, 2]
+    if base == "pinhole":
+        iz = 1.0 / z
+        xn = np.stack([x * iz, y * iz], axis=-1)
+        if not jacobian:
+            return xn
+        jac = np.zeros((len(pc), 2, 3))
+        jac[:, 0, 0] = iz
+        jac[:, 1, 1] = iz
+        jac[:, 0, 2] = -x * iz * iz
+        jac[:, 1, 2] = -y * iz * iz
+        return xn, jac
+    if base not in BASES:
+        raise ValueError(f"unknown base projection {base!r}; expected one of {BASES}")
+    # Angular bases: xn = g(θ) (X, Y) / ρ with θ = atan2(ρ, Z).
+    rho2 = x * x + y * y
+    rho = np.sqrt(rho2)
+    theta = np.arctan2(rho, z)
+    if base == "equidistant":
+        g, dg = theta, np.ones_like(theta)
+    else:
+        g, dg = 2.0 * np.tan(theta / 2), 1.0 / np.cos(theta / 2) ** 2
+    small = rho < 1e-12 * np.maximum(np.abs(z), 1e-300)
+    safe_rho = np.where(small, 1.0, rho)
+    # g/ρ → 1/Z as ρ → 0 for both bases (θ ≈ ρ/Z).
+    scale = np.where(small, 1.0 / z, g / safe_rho)
+    xn = np.stack([x * scale, y * scale], axis=-1)
+    if not jacobian:
+        return xn
+    r2 = rho2 + z * z
+    # ∂θ/∂(X, Y, Z) = (X Z / (ρ r²), Y Z / (ρ r²), −ρ / r²)
+    dtheta = np.stack([x * z / (safe_rho * r2), y * z / (safe_rho * r2), -rho / r2], axis=-1)
+    # ∂scale/∂P = (dg θ' ρ − g ρ') / ρ², with ρ' = (X, Y, 0)/ρ
+    drho = np.stack([x / safe_rho, y / safe_rho, np.zeros_like(x)], axis=-1)
+    dscale = (dg[:, None] * dtheta * safe_rho[:, None] - g[:, None] * drho) / safe_rho[:, None] ** 2
+    dscale[small] = 0.0
+    jac = np.zeros((len(pc), 2, 3))
+    jac[:, 0, :] = x[:, None] * dscale
+    jac[:, 1, :] = y[:, None] * dscale
+    jac[:, 0, 0] += scale
+    jac[:, 1, 1] += scale
+    # Near the axis use the pinhole limit's derivative.
+    if np.any(small):
+        iz = 1.0 / z[small]
+        jac[small] = 0.0
+        jac[small, 0, 0] = iz
+        jac[small, 1, 1] = iz
+    return xn, jac
+
+
+def ray_of(xn: np.ndarray, base: str = "pinhole") -> np.ndarray:
+    """Unit rays (N, 3) of normalised coordinates (N, 2): the inverse of ``normalise``."""
+    x, y = xn[:, 0], xn[:, 1]
+    if base == "pinhole":
+        rays = np.stack([x, y, np.ones_like(x)], axis=-1)
+        return rays / np.linalg.norm(rays, axis=-1, keepdims=True)
+    r = np.hypot(x, y)
+    theta = r if base == "equidistant" else 2.0 * np.arctan(r / 2)
+    safe_r = np.where(r > 0, r, 1.0)
+    s = np.where(r > 0, np.sin(theta) / safe_r, 1.0)
+    return np.stack([x * s, y * s, np.cos(theta)], axis=-1)

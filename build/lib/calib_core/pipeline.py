@@ -1,0 +1,160 @@
+"""calibrate(observations, method, **settings) → Calibration: the pipeline around every method.
+
+The same steps for every method around its fit: choose the usable views, fit,
+reject outliers (robust, per residual component) and refit, then measure.
+"""
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+from threadpoolctl import threadpool_limits
+
+from . import ranges
+from .calibration import Calibration, ViewResult
+from .errors import DataError, SettingsError
+from .fitting import metrics, view_set
+from .fitting.solve import Data, SolveSettings, levenberg_marquardt
+from .methods import METHODS
+from .methods.common import Progress, no_progress, settings_from
+from .observations import Observations
+
+MIN_VIEWS = 3
+MIN_POINTS_PER_VIEW = 6
+OUTLIER_ROUNDS = 3
+
+
+def to_data(obs: Observations) -> tuple[Data, list[str], np.ndarray]:
+    """Flat arrays of the views, their names, and each point's index in its view."""
+    names = [v.name for v in obs.views]
+    obj = np.concatenate([v.object_points for v in obs.views])
+    img = np.concatenate([v.image_points for v in obs.views])
+    vi = np.concatenate([np.full(len(v), k) for k, v in enumerate(obs.views)])
+    local = np.concatenate([np.arange(len(v)) for v in obs.views])
+    return Data(obj, img, vi, len(obs.views)), names, local
+
+
+def usable_views(obs: Observations) -> tuple[Observations, list[dict[str, str]]]:
+    keep, dropped = [], []
+    for v in obs.views:
+        if len(v) < MIN_POINTS_PER_VIEW:
+            dropped.append({"name": v.name, "reason": f"too few corners ({len(v)}, need at least {MIN_POINTS_PER_VIEW})"})
+        else:
+            keep.append(v)
+    if len(keep) < MIN_VIEWS:
+        raise DataError(
+            f"only {len(keep)} usable view(s); a calibration needs at least {MIN_VIEWS} views of the board "
+            "at different angles"
+        )
+    return Observations(obs.image_size, keep, obs.board), dropped
+
+
+def robust_outliers(res: np.ndarray, threshold: float) -> np.ndarray:
+    """Points with a residual component beyond ``threshold`` robust σ (1.4826·MAD)."""
+    sigma = 1.4826 * np.median(np.abs(res - np.median(res, axis=0)))
+    limit = max(threshold * sigma, 1e-6)
+    return np.any(np.abs(res) > limit, axis=1)
+
+
+def calibrate(
+    observations: Observations,
+    method: str = "auto",
+    progress: Progress | None = None,
+    outlier_sigma: float = 5.0,
+    **settings: Any,
+) -> Calibration:
+    """Calibrate with ``method`` (see ``methods.METHODS``); ``settings`` are the
+    method's (e.g. ``knots="uniform"``, ``lambda_smooth=1e-2``).
+
+    ``progress(stage, fraction)`` is called as the work goes on; it may raise
+    ``solve.Cancelled``. ``outlier_sigma`` = 0 keeps every point.
+    """
+    # One BLAS thread: the matrices here are small, so threads cost more than
+    # they give (measured 4x slower on 2 cores), and results then do not
+    # depend on the machine's thread count.
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _calibrate(observations, method, progress, outlier_sigma, **settings)
+
+
+MAX_OUTLIER_SIGMA = 100.0  # residuals past 100 sigma: a threshold this high rejects nothing
+
+
+def check_outlier_sigma(value) -> float:
+    return ranges.number("outlier_sigma (0: keep every point)", value, 0, MAX_OUTLIER_SIGMA)
+
+
+def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Calibration:
+    if method not in METHODS:
+        raise SettingsError(f"unknown method {method!r}; available: {sorted(METHODS)}")
+    check_outlier_sigma(outlier_sigma)
+    fit_fn, settings_cls = METHODS[method]
+    s = settings_from(settings_cls, settings)
+    progress = progress or no_progress
+    t0 = time.perf_counter()
+    obs, dropped = usable_views(observations)
+    view_set.check_views(obs)  # duplicates, all face-on: fail before the solver, saying what to shoot
+    data, names, local = to_data(obs)
+
+    fit = fit_fn(data, obs.image_size, s, progress)
+    res = fit.result
+    view_set.check_fitted_tilts(res.poses[:, :3], planar=bool(np.all(data.object_points[:, 2] == 0)))
+    used = ~fit.excluded
+    outlier = np.zeros(data.n_points, dtype=bool)
+    solve_settings = fit.solve_settings or SolveSettings(getattr(s, "max_iterations", 500), getattr(s, "ftol", 1e-6))
+    for _ in range(OUTLIER_ROUNDS if outlier_sigma > 0 else 0):
+        full = _residuals(res, data)
+        new = used & ~outlier & robust_outliers(np.where(used[:, None], full, 0.0), outlier_sigma)
+        new &= used
+        if not new.any():
+            break
+        outlier |= new
+        keep = used & ~outlier
+        sub = data.points(keep)
+        if fit.refit is not None:
+            res = fit.refit(sub, res)
+        else:
+            res = levenberg_marquardt(res.model, res.poses, sub, solve_settings)
+
+    progress("metrics", 0.97)
+    full = _residuals(res, data)
+    inlier = used & ~outlier
+    views = []
+    for k, name in enumerate(names):
+        m = data.view_index == k
+        r = full[m & inlier]
+        views.append(ViewResult(
+            name, res.poses[k, :3].copy(), res.poses[k, 3:].copy(), metrics.rmse(r), metrics.rmse_axis(r),
+            int(len(r)), [int(i) for i in local[m & ~inlier]],
+        ))
+    summary = metrics.summary(full[inlier], data.image_points[inlier], obs.image_size)
+    n_unknowns = res.model.n_params + 6 * data.n_views
+    diagnostics = dict(fit.diagnostics)
+    diagnostics["solver"] = {
+        "iterations": res.iterations, "status": res.status, "message": res.message,
+        "cost": res.cost, "n_unknowns": n_unknowns, "seconds": time.perf_counter() - t0,
+    }
+    diagnostics["coverage_hull"] = coverage_hull(data.image_points[inlier])
+    diagnostics["excluded_points"] = {"outliers": int(outlier.sum()), "outside_model": int(fit.excluded.sum())}
+    if fit.excluded.any():
+        diagnostics["excluded_points"]["outside_model_reason"] = fit.excluded_reason
+    settings_out = {"method": method, "outlier_sigma": outlier_sigma, **fit.settings}
+    progress("done", 1.0)
+    return Calibration(res.model, obs.image_size, method, views, dropped, summary, settings_out, diagnostics)
+
+
+def coverage_hull(pixels: np.ndarray) -> list[list[float]]:
+    """The convex hull (M, 2) of the corners used: where the calibration has
+    data, so that what is derived from it (lean-model exports) stays there."""
+    try:
+        hull = ConvexHull(pixels)
+    except (QhullError, ValueError):
+        return []
+    return np.round(pixels[hull.vertices], 2).tolist()
+
+
+def _residuals(res, data: Data) -> np.ndarray:
+    from .fitting.solve import residuals
+
+    return residuals(res.model, res.poses, data)

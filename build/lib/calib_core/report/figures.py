@@ -1,0 +1,133 @@
+"""The report's figures as PNG images, drawn with matplotlib from the same
+products the page draws (``tables.py``): residuals over the image, per-view
+errors, the distortion field and, for a field model, the knot grid with its
+corner counts.
+"""
+from __future__ import annotations
+
+import io
+from typing import Any
+
+import numpy as np
+
+DPI = 110
+
+
+def _pyplot():
+    """matplotlib without a display: figures are only ever written to files."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def report_figures(products: dict[str, Any]) -> dict[str, bytes]:
+    """File name → PNG bytes for every figure the products (``report_files``'s
+    contents, plus ``knot_cells.json`` when there are knots) support."""
+    figures = {
+        "residual_heatmap.png": residual_heatmap(products["heatmap.json"]),
+        "residual_vectors.png": residual_vectors(products["corner_residuals.json"],
+                                                 products["heatmap.json"]["image_size"]),
+        "view_errors.png": view_errors(products["view_residuals.json"]),
+        "distortion_field.png": distortion_field(products["distortion_field.json"]),
+    }
+    if products.get("knot_cells.json") is not None:
+        figures["knot_grid.png"] = knot_grid(products["knot_cells.json"])
+    return figures
+
+
+def _image_axes(plt, image_size, title: str):
+    w, h = image_size
+    fig, ax = plt.subplots(figsize=(7, 7 * h / w + 0.6), dpi=DPI)
+    ax.set_xlim(0, w)
+    ax.set_ylim(h, 0)  # image rows grow downwards
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [px]")
+    ax.set_ylabel("y [px]")
+    ax.set_title(title)
+    return fig, ax
+
+
+def _png(plt, fig) -> bytes:
+    buf = io.BytesIO()
+    fig.tight_layout()
+    fig.savefig(buf, format="png")
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def residual_heatmap(heatmap: dict[str, Any]) -> bytes:
+    plt = _pyplot()
+    fig, ax = _image_axes(plt, heatmap["image_size"], "Mean corner error per image cell")
+    w, h = heatmap["image_size"]
+    mean = np.array([[np.nan if x is None else x for x in row] for row in heatmap["mean_error"]], float)
+    im = ax.imshow(np.ma.masked_invalid(mean), extent=(0, w, h, 0), cmap="viridis", interpolation="nearest")
+    fig.colorbar(im, ax=ax, label=heatmap["metric"], shrink=0.8)
+    return _png(plt, fig)
+
+
+def residual_vectors(corners: list[dict[str, Any]], image_size) -> bytes:
+    """Every inlier's residual as an arrow, scaled so the typical one is a few
+    percent of the image; outliers as red crosses."""
+    plt = _pyplot()
+    fig, ax = _image_axes(plt, image_size, "Corner residuals (observed − projected)")
+    inl = np.array([(c["x"], c["y"], c["dx"], c["dy"]) for c in corners
+                    if not c["outlier"] and c["dx"] is not None], float).reshape(-1, 4)
+    out = np.array([(c["x"], c["y"]) for c in corners if c["outlier"]], float).reshape(-1, 2)
+    if len(inl):
+        typical = float(np.percentile(np.hypot(inl[:, 2], inl[:, 3]), 90)) or 1.0
+        scale = 0.03 * max(image_size) / typical
+        ax.quiver(inl[:, 0], inl[:, 1], inl[:, 2] * scale, inl[:, 3] * scale, angles="xy", scale_units="xy",
+                  scale=1, width=0.002, color="tab:blue")
+        ax.text(0.01, 0.01, f"arrows ×{scale:.0f}", transform=ax.transAxes, fontsize=8)
+    if len(out):
+        ax.plot(out[:, 0], out[:, 1], "x", color="tab:red", markersize=4, label="outliers")
+        ax.legend(loc="upper right", fontsize=8)
+    return _png(plt, fig)
+
+
+def view_errors(views: list[dict[str, Any]]) -> bytes:
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 0.25 * len(views) + 1.5), dpi=DPI)
+    names = [v["view"] for v in views]
+    rmse = [np.nan if v["rmse"] is None else v["rmse"] for v in views]
+    ax.barh(names, rmse, color="tab:blue")
+    ax.invert_yaxis()
+    ax.set_xlabel("rmse [px]")
+    ax.set_title("Error per view")
+    return _png(plt, fig)
+
+
+def distortion_field(field: dict[str, Any]) -> bytes:
+    plt = _pyplot()
+    fig, ax = _image_axes(plt, field["image_size"], "Distortion: observed pixel − ideal pinhole pixel")
+    a = np.array([[np.nan if x is None else x for x in field[k]] for k in ("u", "v", "dx", "dy")], float)
+    ok = np.all(np.isfinite(a), axis=0)
+    u, v, dx, dy = a[:, ok]
+    size = np.hypot(dx, dy)
+    ax.quiver(u, v, dx, dy, size, angles="xy", scale_units="xy", scale=1, width=0.003, cmap="magma")
+    ax.text(0.01, 0.01, f"largest offset {size.max():.1f} px" if size.size else "no finite sample",
+            transform=ax.transAxes, fontsize=8)
+    return _png(plt, fig)
+
+
+def knot_grid(cells: dict[str, Any]) -> bytes:
+    """The paper's Figure 11: knot lines and the corners in each knot cell."""
+    plt = _pyplot()
+    bu, bv = np.asarray(cells["breaks_u"]), np.asarray(cells["breaks_v"])
+    fig, ax = plt.subplots(figsize=(7, 7 * (bv[-1] - bv[0]) / (bu[-1] - bu[0]) + 0.6), dpi=DPI)
+    counts = np.asarray(cells["counts"], float)
+    im = ax.pcolormesh(bu, bv, np.ma.masked_equal(counts, 0), cmap="Blues", shading="flat")
+    corners = np.asarray(cells["corners"], float).reshape(-1, 2)
+    ax.plot(corners[:, 0], corners[:, 1], ".", markersize=1, color="0.3")
+    ax.set_xticks(bu, minor=True)
+    ax.set_yticks(bv, minor=True)
+    ax.grid(which="minor", color="0.5", linewidth=0.5)
+    ax.set_xlim(bu[0], bu[-1])
+    ax.set_ylim(bv[-1], bv[0])
+    ax.set_aspect("equal")
+    ax.set_title(f"Knot grid {len(bu) - 1} × {len(bv) - 1}, corners per cell ({cells['positions']})", fontsize=9)
+    fig.colorbar(im, ax=ax, label="corners", shrink=0.8)
+    return _png(plt, fig)

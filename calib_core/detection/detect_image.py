@@ -18,6 +18,7 @@ import numpy as np
 
 from ..board import BoardSpec
 from .grid import expand, gap_strides, lattice_score, place_grid
+from .grow import grow_board
 
 log = logging.getLogger("freecal.detect")
 
@@ -124,6 +125,10 @@ def detect_gray(gray: np.ndarray, board: BoardSpec) -> ImageResult:
         # (a tag or glare next to the corner): such a corner is dropped, not guessed.
         keep = np.linalg.norm(refined - pts, axis=1) <= MAX_REFINE_SHIFT / scale
         ids, pts = ids[keep], refined[keep]
+    if board.type == "chessboard" and len(ids) >= MIN_CORNERS:
+        # OpenCV's grids stop short of the visible board where distortion bends its lines:
+        # grow them over all of it, and check every corner is an X-junction of the right colours.
+        ids, pts = grow_board(gray, ids, pts, board.cols, board.rows).astuple()
     base.sharpness = sharp
     base.n_corners = len(ids)
     if len(ids) < MIN_CORNERS:

@@ -1,0 +1,242 @@
+"""Grow a detected chessboard lattice over the whole visible board.
+
+OpenCV's grids stop short of the board where distortion bends its lines
+(``CALIB_CB_LARGER`` grows with a homography of the whole grid). Here every
+missing lattice position next to found corners is predicted from its own
+neighbours, with a model that follows the bending:
+
+- quadratic extrapolation along a row or column from the last three corners
+  (``3 p1 − 3 p2 + p3``: exact where the spacing changes linearly, which is
+  what a smooth lens does over a few squares), averaged over the directions
+  that have three; else linear from two; else the parallelogram of the
+  nearest cell;
+- confirmed by ``cornerSubPix`` with a window of a quarter of the local square
+  (``saddle.half_window``), and kept only if it moved less than 0.4 of a
+  square and the image there is an X-junction of the right colours
+  (``saddle.is_x_junction``, whose parity test is what keeps ids right).
+
+Growth runs ring by ring (all candidates of a front at once) and stops where
+no candidate is confirmed: at the board's edge (its white border is no
+X-junction, and the lattice never outgrows the board's size), at the image's
+border (the window must fit inside) and at a lens's image circle (the window
+must not reach the unlit frame, ``image_circle``). The corners given are
+checked the same way, and those that fail are dropped.
+
+Ids are the board's ``row * cols + col`` as placed by ``grid.place_grid``; the
+grown lattice is shifted back onto the board keeping the square colours' parity.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import saddle
+from .image_circle import distance_to_unlit
+
+MAX_MOVE = 0.4         # of a square: how far cornerSubPix may take a prediction
+MAX_ROUNDS = 200       # fronts; a 22 x 22 board needs at most ~44
+MIN_SEED_AGREEMENT = 0.6  # share of the given corners that must read as X-junctions to grow at all
+
+
+@dataclass
+class Grown:
+    ids: np.ndarray      # (N,) int64
+    points: np.ndarray   # (N, 2) float64
+    added: int           # corners the growth found beyond those given
+    dropped: int         # corners given that failed the X-junction test
+
+    def astuple(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.ids, self.points
+
+
+def grow_board(gray: np.ndarray, ids: np.ndarray, pts: np.ndarray, cols: int, rows: int,
+               unlit: np.ndarray | None = None) -> Grown:
+    """The given corners (ids (N,), pixels (N, 2) on a cols × rows board) checked, and grown
+    over the visible board. Returned unchanged if they do not read as a checker lattice."""
+    lat = Lattice.of(ids, pts, cols, rows)
+    unlit = distance_to_unlit(gray) if unlit is None else unlit
+    seed_ok, flip = _seed_check(gray, lat)
+    if seed_ok is None:
+        return Grown(ids, pts, 0, 0)
+    lat.parity = flip
+    n_given = int(lat.known.sum())
+    lat.p[~seed_ok] = np.nan
+    dropped = n_given - int(lat.known.sum())
+    n_checked = int(lat.known.sum())
+    tried = np.zeros(lat.known.shape, int)
+    for _ in range(MAX_ROUNDS):
+        if not _grow_front(gray, lat, tried, unlit):
+            break
+    out_ids, out_pts = lat.placed()
+    return Grown(out_ids, out_pts, int(lat.known.sum()) - n_checked, dropped)
+
+
+@dataclass
+class Lattice:
+    """Corner pixels p (R, C, 2), NaN where unknown, on a padded copy of the board's lattice:
+    array row i is board row i - r0 (columns likewise). parity 1 flips the square colours."""
+
+    p: np.ndarray
+    r0: int
+    c0: int
+    cols: int
+    rows: int
+    parity: int = 0
+
+    @classmethod
+    def of(cls, ids: np.ndarray, pts: np.ndarray, cols: int, rows: int) -> "Lattice":
+        p = np.full((3 * rows, 3 * cols, 2), np.nan)
+        p[ids // cols + rows, ids % cols + cols] = pts
+        return cls(p, rows, cols, cols, rows)
+
+    @property
+    def known(self) -> np.ndarray:
+        return np.isfinite(self.p[..., 0])
+
+    def even(self) -> np.ndarray:
+        """(R, C) bool: the corner's top-left and bottom-right squares are bright."""
+        i, j = np.indices(self.p.shape[:2])
+        return (i - self.r0 + j - self.c0 + self.parity) % 2 == 0
+
+    def box_allows(self) -> np.ndarray:
+        """(R, C) bool: positions that keep the lattice within the board's size."""
+        r, c = np.nonzero(self.known)
+        i, j = np.indices(self.known.shape)
+        rows_ok = (np.maximum(i, r.max()) - np.minimum(i, r.min()) < self.rows)
+        cols_ok = (np.maximum(j, c.max()) - np.minimum(j, c.min()) < self.cols)
+        return rows_ok & cols_ok
+
+    def placed(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ids (N,), pixels (N, 2)) on the board, shifted to its top-left with the colours kept
+        (the shift's parity equal to ``parity``, taken on a free side of the board) where the
+        lattice leaves one: a board whose corner squares are black (an odd number of squares
+        each way, BabelCalib's) cannot follow OpenCV's colour convention when seen whole."""
+        r, c = np.nonzero(self.known)
+        dr, dc = -r.min(), -c.min()
+        if (dr + dc + self.parity) % 2:
+            if c.max() - c.min() + 1 < self.cols:
+                dc += 1
+            elif r.max() - r.min() + 1 < self.rows:
+                dr += 1
+        ids = (r + dr) * self.cols + (c + dc)
+        order = np.argsort(ids)
+        return ids[order].astype(np.int64), self.p[r, c][order]
+
+
+def _shift(a: np.ndarray, dr: int, dc: int) -> np.ndarray:
+    """out[i, j] = a[i - dr, j - dc], NaN where that falls outside."""
+    out = np.full_like(a, np.nan)
+    R, C = a.shape[:2]
+    out[max(dr, 0):R + min(dr, 0), max(dc, 0):C + min(dc, 0)] = a[max(-dr, 0):R - max(dr, 0), max(-dc, 0):C - max(dc, 0)]
+    return out
+
+
+def _nanmean(stack: list[np.ndarray]) -> np.ndarray:
+    s = np.stack(stack)
+    n = np.isfinite(s).sum(0)
+    with np.errstate(invalid="ignore"):
+        return np.where(n > 0, np.nansum(s, 0) / np.maximum(n, 1), np.nan)
+
+
+_AXES = ((0, 1), (0, -1), (1, 0), (-1, 0))
+
+
+def predict(p: np.ndarray) -> np.ndarray:
+    """(R, C, 2) predicted pixel of every lattice position from its known neighbours (NaN where
+    none can): quadratic along rows/columns, else linear, else the nearest cell's parallelogram."""
+    quad, lin, cell = [], [], []
+    for dr, dc in _AXES:
+        p1, p2, p3 = _shift(p, dr, dc), _shift(p, 2 * dr, 2 * dc), _shift(p, 3 * dr, 3 * dc)
+        quad.append(3 * p1 - 3 * p2 + p3)
+        lin.append(2 * p1 - p2)
+    for sr in (1, -1):
+        for sc in (1, -1):
+            cell.append(_shift(p, sr, 0) + _shift(p, 0, sc) - _shift(p, sr, sc))
+    out = _nanmean(quad)
+    for tier in (lin, cell):
+        out = np.where(np.isfinite(out), out, _nanmean(tier))
+    return out
+
+
+def lattice_steps(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Local steps to the next column and the next row (R, C, 2) each, at known corners (the
+    mean of the forward and backward differences) and, one step out, at their neighbours."""
+    e_col = _nanmean([_shift(p, 0, -1) - p, p - _shift(p, 0, 1)])
+    e_row = _nanmean([_shift(p, -1, 0) - p, p - _shift(p, 1, 0)])
+    spread = []
+    for e in (e_col, e_row):
+        around = _nanmean([_shift(e, dr, dc) for dr, dc in _AXES])
+        spread.append(np.where(np.isfinite(e), e, around))
+    return spread[0], spread[1]
+
+
+def _seed_check(gray: np.ndarray, lat: Lattice) -> tuple[np.ndarray | None, int]:
+    """(R, C) bool of the given corners that read as X-junctions, and the colour parity they
+    agree with (placement can misread colours on tagged or dim boards); None if too few agree."""
+    e_col, e_row = lattice_steps(lat.p)
+    k = lat.known & np.isfinite(e_col[..., 0]) & np.isfinite(e_row[..., 0])
+    if k.sum() < 4:
+        return None, 0
+    spacing = saddle.nearest_corner(e_col[k], e_row[k])
+    even, half = lat.even()[k], saddle.half_window(spacing)
+    best = None
+    for flip in (0, 1):
+        ok = saddle.is_corner(gray, lat.p[k], e_col[k], e_row[k], even ^ bool(flip), half)
+        if best is None or ok.mean() > best[0].mean():
+            best = (ok, flip)
+    ok, flip = best
+    if ok.mean() < MIN_SEED_AGREEMENT:
+        return None, 0
+    keep = np.zeros(lat.known.shape, bool)
+    keep[k] = ok
+    return keep, flip
+
+
+def _within_board(lat: Lattice, ci: np.ndarray, cj: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """(N,) bool: new corners that keep the lattice within the board's size. Each alone does
+    (``box_allows``), but a front on both sides at once can outgrow it by one: then the side
+    with fewer new corners is left out."""
+    keep = ok.copy()
+    r, c = np.nonzero(lat.known)
+    for new, old, size in ((ci, r, lat.rows), (cj, c, lat.cols)):
+        lo, hi = new < old.min(), new > old.max()
+        span = max(old.max(), new[keep].max(initial=old.max())) - min(old.min(), new[keep].min(initial=old.min())) + 1
+        if span > size:
+            keep &= ~(lo if (keep & lo).sum() < (keep & hi).sum() else hi)
+    return keep
+
+
+def _grow_front(gray: np.ndarray, lat: Lattice, tried: np.ndarray, unlit: np.ndarray) -> bool:
+    """Try every position next to the lattice (one front); True if any corner was added."""
+    known = lat.known
+    n_nb = sum(_shift(known.astype(float)[..., None], dr, dc)[..., 0] == 1 for dr, dc in _AXES)
+    cand = ~known & (n_nb > tried) & lat.box_allows()
+    pred = predict(lat.p)
+    e_col, e_row = lattice_steps(lat.p)
+    cand &= np.isfinite(pred[..., 0]) & np.isfinite(e_col[..., 0]) & np.isfinite(e_row[..., 0])
+    tried[cand] = n_nb[cand]
+    if not cand.any():
+        return False
+    ci, cj = np.nonzero(cand)
+    guess, ec, er = pred[cand], e_col[cand], e_row[cand]
+    spacing = saddle.nearest_corner(ec, er)
+    half = saddle.half_window(spacing)
+    h, w = gray.shape
+    inside = np.all((guess >= half[:, None] + 1) & (guess <= np.array([w, h]) - 2 - half[:, None]), axis=1)
+    if not inside.any():
+        return False
+    ci, cj, guess, ec, er, spacing, half = (a[inside] for a in (ci, cj, guess, ec, er, spacing, half))
+    got = saddle.refine(gray, saddle.refine(gray, guess, saddle.capture_window(spacing)), half)
+    # The refined window, not just its centre, must stay inside the frame and the image circle.
+    x, y = np.rint(got[:, 0]).astype(int), np.rint(got[:, 1]).astype(int)
+    in_frame = (got[:, 0] >= half + 1) & (got[:, 0] <= w - 2 - half) & (got[:, 1] >= half + 1) & (got[:, 1] <= h - 2 - half)
+    x, y = np.clip(x, 0, w - 1), np.clip(y, 0, h - 1)
+    lit = unlit[y, x] > 1.5 * half + 1
+    moved = np.linalg.norm(got - guess, axis=1) <= MAX_MOVE * spacing
+    ok = in_frame & lit & moved & saddle.is_corner(gray, got, ec, er, lat.even()[ci, cj], half)
+    ok &= _within_board(lat, ci, cj, ok)
+    if not ok.any():
+        return False
+    lat.p[ci[ok], cj[ok]] = got[ok]
+    return True

@@ -35,6 +35,7 @@ from . import saddle
 from .image_circle import distance_to_unlit
 
 MAX_MOVE = 0.4         # of a square: how far cornerSubPix may take a prediction
+MAX_WOBBLE = 0.25      # px between refinements with windows one px apart
 MAX_ROUNDS = 200       # fronts; a 22 x 22 board needs at most ~44
 MIN_SEED_AGREEMENT = 0.6  # share of the given corners that must read as X-junctions to grow at all
 
@@ -227,14 +228,18 @@ def _grow_front(gray: np.ndarray, lat: Lattice, tried: np.ndarray, unlit: np.nda
     if not inside.any():
         return False
     ci, cj, guess, ec, er, spacing, half = (a[inside] for a in (ci, cj, guess, ec, er, spacing, half))
-    got = saddle.refine(gray, saddle.refine(gray, guess, saddle.capture_window(spacing)), half)
+    captured = saddle.refine(gray, guess, saddle.capture_window(spacing))
+    got = saddle.refine(gray, captured, half)
+    # A well-defined corner sits where windows of other sizes put it too; one blurred into
+    # a curved smear at a fisheye's horizon does not, and is left out rather than guessed.
+    stable = np.linalg.norm(saddle.refine(gray, captured, np.maximum(half - 1, 2)) - got, axis=1) <= MAX_WOBBLE
     # The refined window, not just its centre, must stay inside the frame and the image circle.
     x, y = np.rint(got[:, 0]).astype(int), np.rint(got[:, 1]).astype(int)
     in_frame = (got[:, 0] >= half + 1) & (got[:, 0] <= w - 2 - half) & (got[:, 1] >= half + 1) & (got[:, 1] <= h - 2 - half)
     x, y = np.clip(x, 0, w - 1), np.clip(y, 0, h - 1)
     lit = unlit[y, x] > 1.5 * half + 1
     moved = np.linalg.norm(got - guess, axis=1) <= MAX_MOVE * spacing
-    ok = in_frame & lit & moved & saddle.is_corner(gray, got, ec, er, lat.even()[ci, cj], half)
+    ok = in_frame & lit & moved & stable & saddle.is_corner(gray, got, ec, er, lat.even()[ci, cj], half)
     ok &= _within_board(lat, ci, cj, ok)
     if not ok.any():
         return False

@@ -76,8 +76,33 @@ def is_corner(gray: np.ndarray, pts: np.ndarray, e_col: np.ndarray, e_row: np.nd
     colours a fifth of a square out."""
     spacing = np.minimum(np.linalg.norm(e_col, axis=1), np.linalg.norm(e_row, axis=1))
     near = np.clip(0.6 * half / np.maximum(0.2 * spacing, 1e-9), 0.0, 1.0)
-    return (is_x_junction(quadrant_levels(gray, pts, e_col, e_row), even)
-            & is_x_junction(quadrant_levels(gray, pts, e_col, e_row, near), even))
+    levels = quadrant_levels(gray, pts, e_col, e_row)
+    contrast = np.abs(levels[:, [0, 3]].mean(1) - levels[:, [1, 2]].mean(1))
+    step = arm_steps(gray, pts, e_col, e_row)
+    return (is_x_junction(levels, even) & is_x_junction(quadrant_levels(gray, pts, e_col, e_row, near), even)
+            & (step >= ARM_CONTRAST * contrast))
+
+
+ARM_AT = 0.25         # of a square along each of the four edges leaving a corner ...
+ARM_SIDE = 0.12       # ... sampled this far either side of it (inside a tag's black border)
+ARM_CONTRAST = 0.35   # of the corner's contrast, across every arm
+
+
+def arm_steps(gray: np.ndarray, pts: np.ndarray, e_col: np.ndarray, e_row: np.ndarray) -> np.ndarray:
+    """(N,) weakest grey-level step across the four edges leaving each corner, halfway to the
+    next corner: on a true corner each separates a bright square from a dark one. A corner on the board's outermost line (the white
+    margin and a printed frame beyond it: a T-junction that passes the quadrant test) has
+    one arm with the same colour on both sides."""
+    arms = np.stack([e_col, -e_col, e_row, -e_row], 1)                 # (N, 4, 2)
+    across = np.stack([e_row, e_row, e_col, e_col], 1)
+    side = np.linalg.norm(across, axis=-1, keepdims=True)
+    off = across / np.maximum(side, 1e-9) * np.clip(ARM_SIDE * side, 1.5, 0.2 * side)
+    mid = pts[:, None, :] + ARM_AT * arms
+    m = np.stack([mid + off, mid - off], 2).astype(np.float32).reshape(-1, 1, 2)
+    v = cv2.remap(gray, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    v = v.reshape(len(pts), 4, 2).astype(np.float64)
+    step = np.abs(v[..., 0] - v[..., 1]).min(1)
+    return step
 
 
 def is_x_junction(levels: np.ndarray, even: np.ndarray) -> np.ndarray:

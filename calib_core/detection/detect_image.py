@@ -19,6 +19,7 @@ import numpy as np
 from ..board import BoardSpec
 from .grid import expand, gap_strides, lattice_score, place_grid
 from .grow import grow_board
+from .model_guided import model_guided
 
 log = logging.getLogger("freecal.detect")
 
@@ -47,6 +48,7 @@ class ImageResult:
     height: int | None = None
     ids: np.ndarray | None = None
     points: np.ndarray | None = None
+    model_added: int | None = None   # corners the re-detection through a calibration added
 
 
 def read_gray(path: str | Path) -> np.ndarray | None:
@@ -64,14 +66,16 @@ def read_gray(path: str | Path) -> np.ndarray | None:
     return cv2.imdecode(data, cv2.IMREAD_GRAYSCALE | cv2.IMREAD_IGNORE_ORIENTATION)
 
 
-def detect_file(path: str | Path, board: BoardSpec, name: str | None = None) -> ImageResult:
-    """Detect the board in one image file; every failure becomes a rejected result."""
+def detect_file(path: str | Path, board: BoardSpec, name: str | None = None, model=None) -> ImageResult:
+    """Detect the board in one image file; every failure becomes a rejected result.
+    With a camera ``model`` (a first calibration's), every board corner is also predicted
+    through it and confirmed (``model_guided``)."""
     name = name or Path(path).name
     try:
         gray = read_gray(path)
         if gray is None:
             return ImageResult(name, "rejected", 0, "could not decode the file as an image")
-        res = detect_gray(gray, board)
+        res = detect_gray(gray, board, model)
         res.name = name
         return res
     except Exception as exc:  # a detector crash on one image must not cost the others
@@ -89,8 +93,8 @@ def failure_reason(exc: Exception) -> str:
             "re-save it as PNG or JPEG and upload it again")
 
 
-def detect_gray(gray: np.ndarray, board: BoardSpec) -> ImageResult:
-    """Detect in a greyscale image (H, W) uint8."""
+def detect_gray(gray: np.ndarray, board: BoardSpec, model=None) -> ImageResult:
+    """Detect in a greyscale image (H, W) uint8; ``model``: as in ``detect_file``."""
     # The sector-based detector draws from OpenCV's global RNG: reseed so a
     # result depends on the image alone, not on which images a worker saw before.
     cv2.setRNGSeed(0x5EED)
@@ -128,7 +132,11 @@ def detect_gray(gray: np.ndarray, board: BoardSpec) -> ImageResult:
     if board.type == "chessboard" and len(ids) >= MIN_CORNERS:
         # OpenCV's grids stop short of the visible board where distortion bends its lines:
         # grow them over all of it, and check every corner is an X-junction of the right colours.
-        ids, pts = grow_board(gray, ids, pts, board.cols, board.rows).astuple()
+        hook = None if model is None else model_guided(gray, model, board.square_size)
+        grown = grow_board(gray, ids, pts, board.cols, board.rows, after_growth=hook)
+        ids, pts = grown.astuple()
+        if model is not None:
+            base.model_added = grown.after_growth_added
     base.sharpness = sharp
     base.n_corners = len(ids)
     if len(ids) < MIN_CORNERS:

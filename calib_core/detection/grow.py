@@ -46,15 +46,20 @@ class Grown:
     points: np.ndarray   # (N, 2) float64
     added: int           # corners the growth found beyond those given
     dropped: int         # corners given that failed the X-junction test
+    after_growth_added: int = 0  # corners the after_growth hook (and growth from them) added
 
     def astuple(self) -> tuple[np.ndarray, np.ndarray]:
         return self.ids, self.points
 
 
 def grow_board(gray: np.ndarray, ids: np.ndarray, pts: np.ndarray, cols: int, rows: int,
-               unlit: np.ndarray | None = None) -> Grown:
+               unlit: np.ndarray | None = None, after_growth=None) -> Grown:
     """The given corners (ids (N,), pixels (N, 2) on a cols × rows board) checked, and grown
-    over the visible board. Returned unchanged if they do not read as a checker lattice."""
+    over the visible board. Returned unchanged if they do not read as a checker lattice.
+
+    after_growth(lattice, unlit), if given, may add corners once growth has stopped
+    (``model_guided``); growth then resumes from them. ``Grown.after_growth_added``
+    counts what that hook and the growth it enabled added."""
     lat = Lattice.of(ids, pts, cols, rows)
     unlit = distance_to_unlit(gray) if unlit is None else unlit
     seed_ok, flip = _seed_check(gray, lat)
@@ -65,12 +70,21 @@ def grow_board(gray: np.ndarray, ids: np.ndarray, pts: np.ndarray, cols: int, ro
     lat.p[~seed_ok] = np.nan
     dropped = n_given - int(lat.known.sum())
     n_checked = int(lat.known.sum())
+    _grow(gray, lat, unlit)
+    n_grown = int(lat.known.sum())
+    if after_growth is not None and after_growth(lat, unlit):
+        _grow(gray, lat, unlit)
+    out_ids, out_pts = lat.placed()
+    n = int(lat.known.sum())
+    return Grown(out_ids, out_pts, n - n_checked, dropped, n - n_grown)
+
+
+def _grow(gray: np.ndarray, lat: Lattice, unlit: np.ndarray) -> None:
+    """Grow front by front until no candidate is confirmed."""
     tried = np.zeros(lat.known.shape, int)
     for _ in range(MAX_ROUNDS):
         if not _grow_front(gray, lat, tried, unlit):
             break
-    out_ids, out_pts = lat.placed()
-    return Grown(out_ids, out_pts, int(lat.known.sum()) - n_checked, dropped)
 
 
 @dataclass
@@ -125,7 +139,7 @@ class Lattice:
         return ids[order].astype(np.int64), self.p[r, c][order]
 
 
-def _shift(a: np.ndarray, dr: int, dc: int) -> np.ndarray:
+def shift(a: np.ndarray, dr: int, dc: int) -> np.ndarray:
     """out[i, j] = a[i - dr, j - dc], NaN where that falls outside."""
     out = np.full_like(a, np.nan)
     R, C = a.shape[:2]
@@ -148,12 +162,12 @@ def predict(p: np.ndarray) -> np.ndarray:
     none can): quadratic along rows/columns, else linear, else the nearest cell's parallelogram."""
     quad, lin, cell = [], [], []
     for dr, dc in _AXES:
-        p1, p2, p3 = _shift(p, dr, dc), _shift(p, 2 * dr, 2 * dc), _shift(p, 3 * dr, 3 * dc)
+        p1, p2, p3 = shift(p, dr, dc), shift(p, 2 * dr, 2 * dc), shift(p, 3 * dr, 3 * dc)
         quad.append(3 * p1 - 3 * p2 + p3)
         lin.append(2 * p1 - p2)
     for sr in (1, -1):
         for sc in (1, -1):
-            cell.append(_shift(p, sr, 0) + _shift(p, 0, sc) - _shift(p, sr, sc))
+            cell.append(shift(p, sr, 0) + shift(p, 0, sc) - shift(p, sr, sc))
     out = _nanmean(quad)
     for tier in (lin, cell):
         out = np.where(np.isfinite(out), out, _nanmean(tier))
@@ -163,11 +177,11 @@ def predict(p: np.ndarray) -> np.ndarray:
 def lattice_steps(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Local steps to the next column and the next row (R, C, 2) each, at known corners (the
     mean of the forward and backward differences) and, one step out, at their neighbours."""
-    e_col = _nanmean([_shift(p, 0, -1) - p, p - _shift(p, 0, 1)])
-    e_row = _nanmean([_shift(p, -1, 0) - p, p - _shift(p, 1, 0)])
+    e_col = _nanmean([shift(p, 0, -1) - p, p - shift(p, 0, 1)])
+    e_row = _nanmean([shift(p, -1, 0) - p, p - shift(p, 1, 0)])
     spread = []
     for e in (e_col, e_row):
-        around = _nanmean([_shift(e, dr, dc) for dr, dc in _AXES])
+        around = _nanmean([shift(e, dr, dc) for dr, dc in _AXES])
         spread.append(np.where(np.isfinite(e), e, around))
     return spread[0], spread[1]
 
@@ -211,22 +225,29 @@ def _within_board(lat: Lattice, ci: np.ndarray, cj: np.ndarray, ok: np.ndarray) 
 def _grow_front(gray: np.ndarray, lat: Lattice, tried: np.ndarray, unlit: np.ndarray) -> bool:
     """Try every position next to the lattice (one front); True if any corner was added."""
     known = lat.known
-    n_nb = sum(_shift(known.astype(float)[..., None], dr, dc)[..., 0] == 1 for dr, dc in _AXES)
+    n_nb = sum(shift(known.astype(float)[..., None], dr, dc)[..., 0] == 1 for dr, dc in _AXES)
     cand = ~known & (n_nb > tried) & lat.box_allows()
     pred = predict(lat.p)
     e_col, e_row = lattice_steps(lat.p)
     cand &= np.isfinite(pred[..., 0]) & np.isfinite(e_col[..., 0]) & np.isfinite(e_row[..., 0])
     tried[cand] = n_nb[cand]
+    return confirm(gray, lat, cand, pred, e_col, e_row, unlit) > 0
+
+
+def confirm(gray: np.ndarray, lat: Lattice, cand: np.ndarray, guess: np.ndarray, e_col: np.ndarray,
+            e_row: np.ndarray, unlit: np.ndarray) -> int:
+    """Refine the guesses (R, C, 2) at candidate positions cand (R, C) with local steps e_col,
+    e_row (R, C, 2); add those confirmed as corners to the lattice. Returns how many."""
     if not cand.any():
-        return False
+        return 0
     ci, cj = np.nonzero(cand)
-    guess, ec, er = pred[cand], e_col[cand], e_row[cand]
+    guess, ec, er = guess[cand], e_col[cand], e_row[cand]
     spacing = saddle.nearest_corner(ec, er)
     half = saddle.half_window(spacing)
     h, w = gray.shape
     inside = np.all((guess >= half[:, None] + 1) & (guess <= np.array([w, h]) - 2 - half[:, None]), axis=1)
     if not inside.any():
-        return False
+        return 0
     ci, cj, guess, ec, er, spacing, half = (a[inside] for a in (ci, cj, guess, ec, er, spacing, half))
     captured = saddle.refine(gray, guess, saddle.capture_window(spacing))
     got = saddle.refine(gray, captured, half)
@@ -234,14 +255,13 @@ def _grow_front(gray: np.ndarray, lat: Lattice, tried: np.ndarray, unlit: np.nda
     # a curved smear at a fisheye's horizon does not, and is left out rather than guessed.
     stable = np.linalg.norm(saddle.refine(gray, captured, np.maximum(half - 1, 2)) - got, axis=1) <= MAX_WOBBLE
     # The refined window, not just its centre, must stay inside the frame and the image circle.
-    x, y = np.rint(got[:, 0]).astype(int), np.rint(got[:, 1]).astype(int)
-    in_frame = (got[:, 0] >= half + 1) & (got[:, 0] <= w - 2 - half) & (got[:, 1] >= half + 1) & (got[:, 1] <= h - 2 - half)
-    x, y = np.clip(x, 0, w - 1), np.clip(y, 0, h - 1)
+    in_frame = ((got[:, 0] >= half + 1) & (got[:, 0] <= w - 2 - half)
+                & (got[:, 1] >= half + 1) & (got[:, 1] <= h - 2 - half))
+    x = np.clip(np.rint(got[:, 0]).astype(int), 0, w - 1)
+    y = np.clip(np.rint(got[:, 1]).astype(int), 0, h - 1)
     lit = unlit[y, x] > 1.5 * half + 1
     moved = np.linalg.norm(got - guess, axis=1) <= MAX_MOVE * spacing
     ok = in_frame & lit & moved & stable & saddle.is_corner(gray, got, ec, er, lat.even()[ci, cj], half)
     ok &= _within_board(lat, ci, cj, ok)
-    if not ok.any():
-        return False
     lat.p[ci[ok], cj[ok]] = got[ok]
-    return True
+    return int(ok.sum())

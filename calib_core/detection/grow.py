@@ -36,7 +36,8 @@ from .image_circle import distance_to_unlit
 
 MAX_MOVE = 0.4         # of a square: how far cornerSubPix may take a prediction
 MAX_WOBBLE = 0.25      # px between refinements with windows one px apart
-MAX_ROUNDS = 200       # fronts; a 22 x 22 board needs at most ~44
+MAX_ROUNDS = 200
+MAX_SURPRISE = 0.5     # of a square: a given corner this far from its neighbours' prediction is dropped       # fronts; a 22 x 22 board needs at most ~44
 MIN_SEED_AGREEMENT = 0.6  # share of the given corners that must read as X-junctions to grow at all
 
 
@@ -69,6 +70,7 @@ def grow_board(gray: np.ndarray, ids: np.ndarray, pts: np.ndarray, cols: int, ro
     n_given = int(lat.known.sum())
     lat.p[~seed_ok] = np.nan
     dropped = n_given - int(lat.known.sum())
+    dropped += _drop_inconsistent(lat)
     n_checked = int(lat.known.sum())
     _grow(gray, lat, unlit)
     n_grown = int(lat.known.sum())
@@ -159,8 +161,15 @@ _AXES = ((0, 1), (0, -1), (1, 0), (-1, 0))
 
 def predict(p: np.ndarray) -> np.ndarray:
     """(R, C, 2) predicted pixel of every lattice position from its known neighbours (NaN where
-    none can): quadratic along rows/columns, else linear, else the nearest cell's parallelogram."""
-    quad, lin, cell = [], [], []
+    none can): between two neighbours on a line (a hole, or a row a detector skipped),
+    else quadratic extrapolation along rows/columns, else linear, else the nearest cell's
+    parallelogram."""
+    between, quad, lin, cell = [], [], [], []
+    for dr, dc in ((0, 1), (1, 0)):
+        a1, b1 = shift(p, dr, dc), shift(p, -dr, -dc)
+        a3, b3 = shift(p, 3 * dr, 3 * dc), shift(p, -3 * dr, -3 * dc)
+        cubic = (9 * (a1 + b1) - (a3 + b3)) / 16   # follows the bending where four are known
+        between.append(np.where(np.isfinite(cubic), cubic, 0.5 * (a1 + b1)))
     for dr, dc in _AXES:
         p1, p2, p3 = shift(p, dr, dc), shift(p, 2 * dr, 2 * dc), shift(p, 3 * dr, 3 * dc)
         quad.append(3 * p1 - 3 * p2 + p3)
@@ -168,8 +177,8 @@ def predict(p: np.ndarray) -> np.ndarray:
     for sr in (1, -1):
         for sc in (1, -1):
             cell.append(shift(p, sr, 0) + shift(p, 0, sc) - shift(p, sr, sc))
-    out = _nanmean(quad)
-    for tier in (lin, cell):
+    out = _nanmean(between)
+    for tier in (quad, lin, cell):
         out = np.where(np.isfinite(out), out, _nanmean(tier))
     return out
 
@@ -179,11 +188,34 @@ def lattice_steps(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     mean of the forward and backward differences) and, one step out, at their neighbours."""
     e_col = _nanmean([shift(p, 0, -1) - p, p - shift(p, 0, 1)])
     e_row = _nanmean([shift(p, -1, 0) - p, p - shift(p, 1, 0)])
+    # A grid that kept every other board line (grid.expand) has no neighbour one step away
+    # across the skipped lines: half the step to the one two away then.
+    e_col = np.where(np.isfinite(e_col), e_col, 0.5 * _nanmean([shift(p, 0, -2) - p, p - shift(p, 0, 2)]))
+    e_row = np.where(np.isfinite(e_row), e_row, 0.5 * _nanmean([shift(p, -2, 0) - p, p - shift(p, 2, 0)]))
     spread = []
     for e in (e_col, e_row):
         around = _nanmean([shift(e, dr, dc) for dr, dc in _AXES])
         spread.append(np.where(np.isfinite(e), e, around))
     return spread[0], spread[1]
+
+
+def _drop_inconsistent(lat: Lattice, rounds: int = 3) -> int:
+    """Drop given corners that their neighbours place elsewhere (by more than MAX_SURPRISE of
+    a square): a detector's corner at the wrong lattice position (seen: 20 px off on a
+    BabelCalib view) can still be a perfect X-junction of the right parity, two steps away.
+    One bad corner spoils its neighbours' predictions too, so only the worst in each
+    neighbourhood goes per round."""
+    before = int(lat.known.sum())
+    for _ in range(rounds):
+        e_col, e_row = lattice_steps(lat.p)
+        surprise = np.linalg.norm(predict(lat.p) - lat.p, axis=-1) / saddle.nearest_corner(e_col, e_row)
+        surprise = np.where(np.isfinite(surprise), surprise, 0.0)
+        around = np.max([shift(surprise[..., None], dr, dc)[..., 0] for dr, dc in _AXES], axis=0)
+        bad = (surprise > MAX_SURPRISE) & (surprise >= np.nan_to_num(around))
+        if not bad.any():
+            break
+        lat.p[bad] = np.nan
+    return before - int(lat.known.sum())
 
 
 def _seed_check(gray: np.ndarray, lat: Lattice) -> tuple[np.ndarray | None, int]:

@@ -115,3 +115,44 @@ def is_x_junction(levels: np.ndarray, even: np.ndarray) -> np.ndarray:
     contrast = bright.mean(1) - dark.mean(1)
     gap = bright.min(1) - dark.max(1)
     return (contrast >= MIN_CONTRAST) & (gap >= SEPARATION * contrast)
+
+
+SADDLE_BLUR = 1.5        # px, Gaussian pre-smoothing of the image for the saddle fit
+SADDLE_STEPS = 3         # re-centred fits
+MAX_SADDLE_SHIFT = 1.5   # px the fit may move from cornerSubPix's answer; further is left to cornerSubPix
+
+
+def smoothed(gray: np.ndarray) -> np.ndarray:
+    """The image as float32, lightly blurred: a saddle fit wants a smooth surface."""
+    return cv2.GaussianBlur(gray.astype(np.float32), (0, 0), SADDLE_BLUR)
+
+
+def saddle_fit(smooth: np.ndarray, pts: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Saddle points (N, 2) of a quadratic surface fitted to the smoothed image over each
+    corner's window (half (N,)), and the surface's Hessian determinant (N,) (< 0: a saddle).
+
+    A chessboard corner is the saddle of the blurred image: fitting
+    z = a x² + b xy + c y² + d x + e y + f and solving ∇z = 0 is unbiased where cornerSubPix
+    (which balances gradients across the whole window) is pulled by the curved edges of
+    strongly distorted squares. Gaussian weights (σ = half / 2) keep the fit local.
+    """
+    out, det = pts.astype(np.float64).copy(), np.full(len(pts), np.nan)
+    for h in np.unique(half):
+        sel = np.flatnonzero(half == h)
+        o = np.arange(-h, h + 1, dtype=np.float64)
+        dx, dy = (a.ravel() for a in np.meshgrid(o, o))
+        wts = np.exp(-(dx ** 2 + dy ** 2) / (2 * (h / 2) ** 2))
+        design = np.stack([dx * dx, dx * dy, dy * dy, dx, dy, np.ones_like(dx)], 1) * wts[:, None] ** 0.5
+        pinv = np.linalg.pinv(design)                                      # (6, M): one fit matrix for all
+        p = out[sel]
+        for _ in range(SADDLE_STEPS):
+            m = (p[:, None, :] + np.stack([dx, dy], 1)[None]).astype(np.float32)
+            z = cv2.remap(smooth, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            a, b, c, d, e, _ = pinv @ (z.reshape(len(sel), -1) * wts ** 0.5).T   # (6, n)
+            dd = 4 * a * c - b * b
+            with np.errstate(all="ignore"):
+                step = np.stack([(b * e - 2 * c * d) / dd, (b * d - 2 * a * e) / dd], 1)
+            step = np.where(np.isfinite(step) & (np.abs(step) <= h), step, 0.0)
+            p = p + step
+        out[sel], det[sel] = p, dd
+    return out, det

@@ -88,7 +88,8 @@ def babel_reference(root: Path) -> Observations:
 def refinable_truth(kind: str, pose: np.ndarray, name: str) -> View:
     """The exact corners of a rendered view whose refinement window (a quarter of the local
     square, ``saddle.half_window`` of the distance to the nearest corner) lies inside the
-    image and inside the lens's coverage: the corners a detector can be asked for."""
+    image and inside the lens's coverage, and holds no other corner: the corners a
+    detector can be asked for."""
     cols, rows = synth.TRAIN_BOARD
     pts = synth.board_points(cols, rows, synth.SQUARE)
     from scipy.spatial.transform import Rotation
@@ -97,9 +98,10 @@ def refinable_truth(kind: str, pose: np.ndarray, name: str) -> View:
     front = pc[:, 2] > 1e-6
     uv[front] = synth.true_project(kind, pc[front])
     e_col, e_row = (e.reshape(-1, 2) for e in lattice_steps(uv.reshape(rows, cols, 2)))
-    half = saddle.half_window(saddle.nearest_corner(e_col, e_row))
+    gap = saddle.nearest_corner(e_col, e_row)
+    half = saddle.half_window(gap)
     w, h = synth.IMAGE_SIZE
-    ok = np.all(np.isfinite(uv), axis=1)
+    ok = np.all(np.isfinite(uv), axis=1) & saddle.window_holds_one_corner(np.nan_to_num(gap, nan=np.inf))
     ok &= np.all((uv >= half[:, None] + 1) & (uv <= np.array([w, h]) - 2 - half[:, None]), axis=1)
     _, covered = render.pixel_rays(kind, synth.IMAGE_SIZE)
     dist = cv2.distanceTransform(covered.astype(np.uint8), cv2.DIST_L2, 5)

@@ -35,7 +35,7 @@ from . import saddle
 from .image_circle import distance_to_unlit
 
 MAX_MOVE = 0.4         # of a square: how far cornerSubPix may take a prediction
-MAX_WOBBLE = 0.25      # px between refinements with windows one px apart
+MAX_WOBBLE = 0.5      # px between refinements with windows one px apart
 MAX_ROUNDS = 200
 MAX_SURPRISE = 0.5     # of a square: a given corner this far from its neighbours' prediction is dropped       # fronts; a 22 x 22 board needs at most ~44
 MIN_SEED_AGREEMENT = 0.6  # share of the given corners that must read as X-junctions to grow at all
@@ -94,7 +94,9 @@ def _saddle_polish(gray: np.ndarray, lat: Lattice) -> int:
     e_col, e_row = lattice_steps(lat.p)
     half = saddle.half_window(saddle.nearest_corner(e_col[i, j], e_row[i, j]))
     fitted, det = saddle.saddle_fit(saddle.smoothed(gray), lat.p[i, j], half)
+    spacing = saddle.nearest_corner(e_col[i, j], e_row[i, j])
     ok = (det < 0) & (np.linalg.norm(fitted - lat.p[i, j], axis=1) <= saddle.MAX_SADDLE_SHIFT)
+    ok &= saddle.window_holds_one_corner(np.nan_to_num(spacing, nan=np.inf))
     lat.p[i, j] = np.where(ok[:, None], fitted, np.nan)
     return int((~ok).sum())
 
@@ -310,7 +312,7 @@ def confirm(gray: np.ndarray, lat: Lattice, cand: np.ndarray, guess: np.ndarray,
     x = np.clip(np.rint(got[:, 0]).astype(int), 0, w - 1)
     y = np.clip(np.rint(got[:, 1]).astype(int), 0, h - 1)
     lit = unlit[y, x] > 1.5 * half + 1
-    moved = np.linalg.norm(got - guess, axis=1) <= MAX_MOVE * spacing
+    moved = (np.linalg.norm(got - guess, axis=1) <= MAX_MOVE * spacing) & saddle.window_holds_one_corner(spacing)
     ok = in_frame & lit & moved & stable & saddle.is_corner(gray, got, ec, er, lat.even()[ci, cj], half)
     ok &= _within_board(lat, ci, cj, ok)
     lat.p[ci[ok], cj[ok]] = got[ok]

@@ -31,6 +31,13 @@ def nearest_corner(e_col: np.ndarray, e_row: np.ndarray) -> np.ndarray:
     return np.min([np.linalg.norm(v, axis=-1) for v in (e_col, e_row, e_col + e_row, e_col - e_row)], axis=0)
 
 
+def window_holds_one_corner(spacing: np.ndarray) -> np.ndarray:
+    """(N,) bool: the refinement window (half_window) of a corner whose nearest other corner is
+    spacing (N,) px away holds no other corner. At a fisheye's horizon squares shrink to a few
+    px and the diagonal neighbour falls inside even the smallest window: no fit can separate them."""
+    return spacing > np.sqrt(2) * half_window(spacing) + 1
+
+
 def half_window(spacing: np.ndarray) -> np.ndarray:
     """cornerSubPix half-window (N,) int for local lattice steps (N,) px: a quarter square,
     2..10 px. Larger windows reach across curved edges of distorted squares and into tags;

@@ -31,7 +31,7 @@ from calib_core.synth import render
 from calib_core import synth
 from calib_core.board import BoardSpec
 from calib_core.detection.corner_error import corner_errors, same_id_errors
-from calib_core.detection import saddle
+from calib_core.detection import corner_refine
 from calib_core.detection.grow import lattice_steps
 from calib_core.detection.detect import detect_images, image_paths
 from calib_core.detection.detect_image import CLASSIC_FLAGS, SUBPIX, read_gray
@@ -87,7 +87,7 @@ def babel_reference(root: Path) -> Observations:
 
 def refinable_truth(kind: str, pose: np.ndarray, name: str) -> View:
     """The exact corners of a rendered view whose refinement window (a quarter of the local
-    square, ``saddle.half_window`` of the distance to the nearest corner) lies inside the
+    square, ``corner_refine.half_window`` of the distance to the nearest corner) lies inside the
     image and inside the lens's coverage, and holds no other corner: the corners a
     detector can be asked for."""
     cols, rows = synth.TRAIN_BOARD
@@ -98,10 +98,10 @@ def refinable_truth(kind: str, pose: np.ndarray, name: str) -> View:
     front = pc[:, 2] > 1e-6
     uv[front] = synth.true_project(kind, pc[front])
     e_col, e_row = (e.reshape(-1, 2) for e in lattice_steps(uv.reshape(rows, cols, 2)))
-    gap = saddle.nearest_corner(e_col, e_row)
-    half = saddle.half_window(gap)
+    gap = corner_refine.nearest_corner(e_col, e_row)
+    half = corner_refine.half_window(gap)
     w, h = synth.IMAGE_SIZE
-    ok = np.all(np.isfinite(uv), axis=1) & saddle.window_holds_one_corner(np.nan_to_num(gap, nan=np.inf))
+    ok = np.all(np.isfinite(uv), axis=1) & corner_refine.window_holds_one_corner(np.nan_to_num(gap, nan=np.inf))
     ok &= np.all((uv >= half[:, None] + 1) & (uv <= np.array([w, h]) - 2 - half[:, None]), axis=1)
     _, covered = render.pixel_rays(kind, synth.IMAGE_SIZE)
     dist = cv2.distanceTransform(covered.astype(np.uint8), cv2.DIST_L2, 5)

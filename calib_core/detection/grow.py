@@ -11,16 +11,25 @@ neighbours, with a model that follows the bending:
   that have three; else linear from two; else the parallelogram of the
   nearest cell;
 - confirmed by ``cornerSubPix`` with a window of a quarter of the local square
-  (``saddle.half_window``), and kept only if it moved less than 0.4 of a
+  (``corner_refine.half_window``), and kept only if it moved less than 0.4 of a
   square and the image there is an X-junction of the right colours
   (``saddle.is_x_junction``, whose parity test is what keeps ids right).
+
+Holes, and the lines a detector skipped (``grid.expand``), are filled first by
+interpolation between neighbours on a line (cubic where four are known). A
+confirmed corner must also have four arms (``saddle.arm_steps``: a T-junction
+on the board's outer line passes the quadrant test), hold no other corner in
+its window, and sit where windows one px apart agree (``MAX_WOBBLE``).
 
 Growth runs ring by ring (all candidates of a front at once) and stops where
 no candidate is confirmed: at the board's edge (its white border is no
 X-junction, and the lattice never outgrows the board's size), at the image's
 border (the window must fit inside) and at a lens's image circle (the window
 must not reach the unlit frame, ``image_circle``). The corners given are
-checked the same way, and those that fail are dropped.
+checked the same way, and those that fail, or that their neighbours place
+elsewhere, are dropped. Last, every corner is moved to the saddle point of a
+quadratic surface fitted to the smoothed image (``corner_refine.saddle_fit``; dropped
+where there is no saddle).
 
 Ids are the board's ``row * cols + col`` as placed by ``grid.place_grid``; the
 grown lattice is shifted back onto the board keeping the square colours' parity.
@@ -31,13 +40,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import saddle
+from . import corner_refine, saddle
 from .image_circle import distance_to_unlit
 
 MAX_MOVE = 0.4         # of a square: how far cornerSubPix may take a prediction
-MAX_WOBBLE = 0.5      # px between refinements with windows one px apart
-MAX_ROUNDS = 200
-MAX_SURPRISE = 0.5     # of a square: a given corner this far from its neighbours' prediction is dropped       # fronts; a 22 x 22 board needs at most ~44
+MAX_WOBBLE = 0.5       # px between refinements with windows one px apart (0.25: 326 fewer BabelCalib corners)
+MAX_ROUNDS = 200       # fronts; a 22 x 22 board needs at most ~44
+MAX_SURPRISE = 0.5     # of a square: a given corner this far from its neighbours' prediction is dropped
 MIN_SEED_AGREEMENT = 0.6  # share of the given corners that must read as X-junctions to grow at all
 
 
@@ -46,7 +55,7 @@ class Grown:
     ids: np.ndarray      # (N,) int64
     points: np.ndarray   # (N, 2) float64
     added: int           # corners the growth found beyond those given
-    dropped: int         # corners given that failed the X-junction test
+    dropped: int         # corners given that failed a test (X-junction, neighbours, saddle)
     after_growth_added: int = 0  # corners the after_growth hook (and growth from them) added
 
     def astuple(self) -> tuple[np.ndarray, np.ndarray]:
@@ -71,34 +80,33 @@ def grow_board(gray: np.ndarray, ids: np.ndarray, pts: np.ndarray, cols: int, ro
     lat.p[~seed_ok] = np.nan
     dropped = n_given - int(lat.known.sum())
     dropped += _drop_inconsistent(lat)
-    n_checked = int(lat.known.sum())
+    given = lat.known.copy()
     _grow(gray, lat, unlit)
-    n_grown = int(lat.known.sum())
+    grown = lat.known.copy()
     if after_growth is not None and after_growth(lat, unlit):
         _grow(gray, lat, unlit)
-    lost = _saddle_polish(gray, lat)
-    n_grown -= min(lost, n_grown)
+    dropped += int((given & ~_saddle_polish(gray, lat)).sum())
     out_ids, out_pts = lat.placed()
-    n = int(lat.known.sum())
-    return Grown(out_ids, out_pts, n - n_checked, dropped, n - n_grown)
+    known = lat.known
+    return Grown(out_ids, out_pts, int((known & ~given).sum()), dropped, int((known & ~grown).sum()))
 
 
-def _saddle_polish(gray: np.ndarray, lat: Lattice) -> int:
-    """Every corner moved to the saddle point of the smoothed image (``saddle.saddle_fit``);
+def _saddle_polish(gray: np.ndarray, lat: Lattice) -> np.ndarray:
+    """Every corner moved to the saddle point of the smoothed image (``corner_refine.saddle_fit``);
     corners where the surface is no saddle, or whose saddle lies far from cornerSubPix's
-    answer, are dropped. Returns how many were dropped.
+    answer, are dropped. Returns the (R, C) mask of corners kept.
 
     Measured on BabelCalib ov_plane, same corners: median distance to the authors' saddle
     detector 0.224 -> 0.032 px; on rendered fisheye views, to the truth 0.046 -> 0.023 px."""
     i, j = np.nonzero(lat.known)
     e_col, e_row = lattice_steps(lat.p)
-    half = saddle.half_window(saddle.nearest_corner(e_col[i, j], e_row[i, j]))
-    fitted, det = saddle.saddle_fit(saddle.smoothed(gray), lat.p[i, j], half)
-    spacing = saddle.nearest_corner(e_col[i, j], e_row[i, j])
-    ok = (det < 0) & (np.linalg.norm(fitted - lat.p[i, j], axis=1) <= saddle.MAX_SADDLE_SHIFT)
-    ok &= saddle.window_holds_one_corner(np.nan_to_num(spacing, nan=np.inf))
+    half = corner_refine.half_window(corner_refine.nearest_corner(e_col[i, j], e_row[i, j]))
+    fitted, det = corner_refine.saddle_fit(corner_refine.smoothed(gray), lat.p[i, j], half)
+    spacing = corner_refine.nearest_corner(e_col[i, j], e_row[i, j])
+    ok = (det < 0) & (np.linalg.norm(fitted - lat.p[i, j], axis=1) <= corner_refine.MAX_SADDLE_SHIFT)
+    ok &= corner_refine.window_holds_one_corner(np.nan_to_num(spacing, nan=np.inf))
     lat.p[i, j] = np.where(ok[:, None], fitted, np.nan)
-    return int((~ok).sum())
+    return lat.known
 
 
 def _grow(gray: np.ndarray, lat: Lattice, unlit: np.ndarray) -> None:
@@ -228,7 +236,7 @@ def _drop_inconsistent(lat: Lattice, rounds: int = 3) -> int:
     before = int(lat.known.sum())
     for _ in range(rounds):
         e_col, e_row = lattice_steps(lat.p)
-        surprise = np.linalg.norm(predict(lat.p) - lat.p, axis=-1) / saddle.nearest_corner(e_col, e_row)
+        surprise = np.linalg.norm(predict(lat.p) - lat.p, axis=-1) / corner_refine.nearest_corner(e_col, e_row)
         surprise = np.where(np.isfinite(surprise), surprise, 0.0)
         around = np.max([shift(surprise[..., None], dr, dc)[..., 0] for dr, dc in _AXES], axis=0)
         bad = (surprise > MAX_SURPRISE) & (surprise >= np.nan_to_num(around))
@@ -245,8 +253,8 @@ def _seed_check(gray: np.ndarray, lat: Lattice) -> tuple[np.ndarray | None, int]
     k = lat.known & np.isfinite(e_col[..., 0]) & np.isfinite(e_row[..., 0])
     if k.sum() < 4:
         return None, 0
-    spacing = saddle.nearest_corner(e_col[k], e_row[k])
-    even, half = lat.even()[k], saddle.half_window(spacing)
+    spacing = corner_refine.nearest_corner(e_col[k], e_row[k])
+    even, half = lat.even()[k], corner_refine.half_window(spacing)
     best = None
     for flip in (0, 1):
         ok = saddle.is_corner(gray, lat.p[k], e_col[k], e_row[k], even ^ bool(flip), half)
@@ -294,25 +302,25 @@ def confirm(gray: np.ndarray, lat: Lattice, cand: np.ndarray, guess: np.ndarray,
         return 0
     ci, cj = np.nonzero(cand)
     guess, ec, er = guess[cand], e_col[cand], e_row[cand]
-    spacing = saddle.nearest_corner(ec, er)
-    half = saddle.half_window(spacing)
+    spacing = corner_refine.nearest_corner(ec, er)
+    half = corner_refine.half_window(spacing)
     h, w = gray.shape
     inside = np.all((guess >= half[:, None] + 1) & (guess <= np.array([w, h]) - 2 - half[:, None]), axis=1)
     if not inside.any():
         return 0
     ci, cj, guess, ec, er, spacing, half = (a[inside] for a in (ci, cj, guess, ec, er, spacing, half))
-    captured = saddle.refine(gray, guess, saddle.capture_window(spacing))
-    got = saddle.refine(gray, captured, half)
+    captured = corner_refine.refine(gray, guess, corner_refine.capture_window(spacing))
+    got = corner_refine.refine(gray, captured, half)
     # A well-defined corner sits where windows of other sizes put it too; one blurred into
     # a curved smear at a fisheye's horizon does not, and is left out rather than guessed.
-    stable = np.linalg.norm(saddle.refine(gray, captured, np.maximum(half - 1, 2)) - got, axis=1) <= MAX_WOBBLE
+    stable = np.linalg.norm(corner_refine.refine(gray, captured, np.maximum(half - 1, 2)) - got, axis=1) <= MAX_WOBBLE
     # The refined window, not just its centre, must stay inside the frame and the image circle.
     in_frame = ((got[:, 0] >= half + 1) & (got[:, 0] <= w - 2 - half)
                 & (got[:, 1] >= half + 1) & (got[:, 1] <= h - 2 - half))
     x = np.clip(np.rint(got[:, 0]).astype(int), 0, w - 1)
     y = np.clip(np.rint(got[:, 1]).astype(int), 0, h - 1)
     lit = unlit[y, x] > 1.5 * half + 1
-    moved = (np.linalg.norm(got - guess, axis=1) <= MAX_MOVE * spacing) & saddle.window_holds_one_corner(spacing)
+    moved = (np.linalg.norm(got - guess, axis=1) <= MAX_MOVE * spacing) & corner_refine.window_holds_one_corner(spacing)
     ok = in_frame & lit & moved & stable & saddle.is_corner(gray, got, ec, er, lat.even()[ci, cj], half)
     ok &= _within_board(lat, ci, cj, ok)
     lat.p[ci[ok], cj[ok]] = got[ok]

@@ -31,7 +31,7 @@ MAX_REFINE_SHIFT = 1.0    # px a final cornerSubPix may move a detector's corner
 SB_FLAGS = cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
 CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
 MIN_LATTICE_SCORE = 0.8   # share of grid cells that must read as one checker square
-SEEDS = (4, 5, 3)          # seed grid sizes for partial boards, tried in turn (see _grown_grid)
+SEEDS = (4, 5, 3, 6)       # seed grid sizes for partial boards, tried in turn (see _grown_grid; 6: rendered fisheye view 2)
 SUBPIX = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 40, 1e-3)
 
 

@@ -8,7 +8,13 @@ python -m benchmarks detect [--sets NAME,...] [--rendered KIND] [--views N] [--w
   (ChArUco: ``CharucoDetector.detectBoard``), one process;
 - accuracy: BabelCalib fisheye corners against the authors' reference (.orpc),
   and rendered images (``freecal synth --images``) against exact corners. Corners
-  are matched by position; "wrong" are those > 1 px from every reference corner.
+  are matched by position; "wrong" are those > 1 px from every reference corner;
+- same-id errors: each corner against the reference corner of the same board corner
+  (ids mapped through the view's lattice motion), and on rendered views the share found
+  of the corners whose refinement window (a quarter of the local square, as the
+  detector's) lies inside the image and the lens's image circle;
+- re-detection through a first calibration (``--refine``: calibrate the rendered views'
+  corners with ``--method fisheye``, detect again with ``calibration=``): corners added.
 """
 from __future__ import annotations
 
@@ -23,9 +29,11 @@ import numpy as np
 
 from calib_core import synth
 from calib_core.board import BoardSpec
-from calib_core.detection.corner_error import corner_errors
+from calib_core.detection import corner_refine
+from calib_core.detection.corner_error import corner_errors, same_id_errors
 from calib_core.detection.detect import detect_images, image_paths
 from calib_core.detection.detect_image import CLASSIC_FLAGS, SUBPIX, read_gray
+from calib_core.detection.grow import lattice_steps
 from calib_core.observations import Observations, View
 from calib_core.synth import render
 
@@ -77,6 +85,44 @@ def babel_reference(root: Path) -> Observations:
     return Observations((1280, 800), views)
 
 
+def refinable_truth(kind: str, pose: np.ndarray, name: str) -> View:
+    """The exact corners of a rendered view whose refinement window (a quarter of the local
+    square, ``corner_refine.half_window`` of the distance to the nearest corner) lies inside the
+    image and inside the lens's coverage, and holds no other corner: the corners a
+    detector can be asked for."""
+    cols, rows = synth.TRAIN_BOARD
+    pts = synth.board_points(cols, rows, synth.SQUARE)
+    from scipy.spatial.transform import Rotation
+    pc = Rotation.from_rotvec(pose[:3]).apply(pts) + pose[3:]
+    uv = np.full((len(pts), 2), np.nan)
+    front = pc[:, 2] > 1e-6
+    uv[front] = synth.true_project(kind, pc[front])
+    e_col, e_row = (e.reshape(-1, 2) for e in lattice_steps(uv.reshape(rows, cols, 2)))
+    gap = corner_refine.nearest_corner(e_col, e_row)
+    half = corner_refine.half_window(gap)
+    w, h = synth.IMAGE_SIZE
+    ok = np.all(np.isfinite(uv), axis=1) & corner_refine.window_holds_one_corner(np.nan_to_num(gap, nan=np.inf))
+    ok &= np.all((uv >= half[:, None] + 1) & (uv <= np.array([w, h]) - 2 - half[:, None]), axis=1)
+    _, covered = render.pixel_rays(kind, synth.IMAGE_SIZE)
+    dist = cv2.distanceTransform(covered.astype(np.uint8), cv2.DIST_L2, 5)
+    x, y = (np.clip(np.rint(np.nan_to_num(uv[:, k])).astype(int), 0, n - 1) for k, n in ((0, w), (1, h)))
+    ok &= dist[y, x] > np.sqrt(2) * half + 1
+    ids = np.flatnonzero(ok)
+    return View(name, pts[ids], uv[ids], ids)
+
+
+def _row_same_id(label: str, det: Observations | None, ref: Observations, cols: int, n_ref: int | None) -> tuple:
+    if det is None:
+        return (label, 0, "—", "—", "—", "—", "—", "—")
+    e = same_id_errors(det, ref, cols)
+    d = e["distances"]
+    share = "—" if n_ref is None else f"{e['n'] / n_ref:.1%}"
+    if not d.size:
+        return (label, det.n_points, e["n"], e["n_unreferenced"], share, "—", "—", "—")
+    return (label, det.n_points, e["n"], e["n_unreferenced"], share, f"{np.median(d):.3f}",
+            f"{np.mean(d < 0.5):.1%}", f"{int(np.sum(d > 1))} (max {d.max():.2f})")
+
+
 def _dirs(root: Path) -> list[Path]:
     return [root / "train", root / "test"] if (root / "train").is_dir() else [root]
 
@@ -107,9 +153,11 @@ def main(argv: list[str]) -> int:
                     help="synthetic lens of the rendered images (none: skip)")
     ap.add_argument("--views", type=int, default=10, help="rendered views (generate()'s training poses)")
     ap.add_argument("--workers", type=int, default=None, help="freecal worker processes (default: all cores)")
+    ap.add_argument("--refine", action="store_true",
+                    help="also calibrate the rendered corners and re-detect through that calibration")
     args = ap.parse_args(argv)
 
-    speed, accuracy = [], []
+    speed, accuracy, same_id, refined = [], [], [], []
     found: dict[str, tuple] = {}
     for name in [s for s in args.sets.split(",") if s]:
         root = DATA / name
@@ -134,6 +182,7 @@ def main(argv: list[str]) -> int:
         ours, plain = found["babelcalib-ov-plane-fisheye"]
         accuracy.append(_row_accuracy("BabelCalib vs .orpc: freecal", ours, ref, 22))
         accuracy.append(_row_accuracy("BabelCalib vs .orpc: plain OpenCV", plain, ref, 22))
+        same_id.append(_row_same_id("BabelCalib vs .orpc: freecal", ours, ref, 22, ref.n_points))
 
     if args.rendered != "none":
         with tempfile.TemporaryDirectory() as tmp:
@@ -156,6 +205,20 @@ def main(argv: list[str]) -> int:
                           f"{t_plain / t_ours:.2f}"))
             accuracy.append(_row_accuracy(f"{label} vs truth: freecal", det.observations, truth, board.cols))
             accuracy.append(_row_accuracy(f"{label} vs truth: plain OpenCV", plain, truth, board.cols))
+            visible = Observations(synth.IMAGE_SIZE, [refinable_truth(args.rendered, p, f"{n}.png") for n, p in poses])
+            same_id.append(_row_same_id(f"{label} vs refinable truth: freecal", det.observations, visible, board.cols,
+                                        visible.n_points))
+            if args.refine and det.observations is not None:
+                from calib_core import pipeline
+                cal = pipeline.calibrate(det.observations, method="fisheye")
+                t0 = time.perf_counter()
+                again = detect_images(tmp, board, workers=args.workers, calibration=cal)
+                t_again = time.perf_counter() - t0
+                same_id.append(_row_same_id(f"{label} re-detected through a calibration", again.observations,
+                                            visible, board.cols, visible.n_points))
+                refined.append((label, f"{cal.metrics.get('rmse', float('nan')):.3f}", det.observations.n_points,
+                                again.observations.n_points if again.observations else 0, again.model_added,
+                                f"{t_again:.1f}"))
             print(f"rendered {len(images)} images of {synth.IMAGE_SIZE[0]}x{synth.IMAGE_SIZE[1]} in {t_render:.1f} s "
                   f"({t_render / max(len(images), 1):.2f} s each, lens inversion included)", file=sys.stderr)
 
@@ -166,4 +229,13 @@ def main(argv: list[str]) -> int:
     print("\nCorner accuracy, px to the nearest reference corner (wrong: > 1 px; lattice: worst view's "
           "share of ids one lattice motion maps onto the reference's)\n")
     _print_table(["corners of", "n", "median", "p95", "max", "< 0.5 px / wrong", "lattice"], accuracy)
+    print("\nSame-id errors, px to the reference corner of the same board corner (ids mapped through the "
+          "view's lattice motion); 'share' is of the reference's corners (rendered: those whose refinement "
+          "window lies inside the image and the image circle)\n")
+    _print_table(["corners of", "found", "with reference", "not in reference", "share", "median", "< 0.5 px",
+                  "> 1 px"], same_id)
+    if refined:
+        print("\nRe-detection through a first calibration (fisheye model fitted to the first detection)\n")
+        _print_table(["views", "calibration rmse px", "corners first", "corners again", "added by the model",
+                      "seconds"], refined)
     return 0

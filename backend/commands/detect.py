@@ -22,6 +22,9 @@ def register(sub) -> None:
     p.add_argument("--board", required=True, help=BOARD_HELP)
     p.add_argument("-o", "--output", help="write the freecal.observations/1 JSON here")
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: all cores)")
+    p.add_argument("--refine-with", metavar="CAL.json",
+                   help="a first freecal.calibration/1 of this camera: predict every board corner through it "
+                        "and keep those confirmed in the image (chessboards)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
 
@@ -42,10 +45,11 @@ class ProgressBar:
               f"({rate:.1f}/s)", end=end, file=sys.stderr, flush=True)
 
 
-def detect_with_report(images, board_spec: str, quiet: bool = False, workers: int | None = None) -> Detection:
+def detect_with_report(images, board_spec: str, quiet: bool = False, workers: int | None = None,
+                       calibration=None) -> Detection:
     """Detect, print the per-image table and warnings; DataError if no image was usable."""
     board = BoardSpec.parse(board_spec)
-    det = detect_images(images, board, progress=ProgressBar(quiet), workers=workers)
+    det = detect_images(images, board, progress=ProgressBar(quiet), workers=workers, calibration=calibration)
     print_report(det)
     if det.observations is None:
         raise DataError(det.warnings[0] if det.warnings else "no image was usable")
@@ -59,12 +63,19 @@ def print_report(det: Detection) -> None:
     used = sum(r.status == "used" for r in det.reports)
     n = sum(r.n_corners for r in det.reports if r.status == "used")
     print(f"\n{used}/{len(det.reports)} images used, {n} corners")
+    if det.model_added is not None:
+        print(f"re-detection through the calibration added {det.model_added} corners")
     for w in det.warnings:
         print(f"warning: {w}")
 
 
 def run(args) -> int:
-    det = detect_with_report(args.images, args.board, args.quiet, args.workers)
+    cal = None
+    if args.refine_with:
+        from calib_core.calibration import Calibration
+
+        cal = Calibration.load(args.refine_with)
+    det = detect_with_report(args.images, args.board, args.quiet, args.workers, cal)
     if args.output:
         det.observations.extra["coverage"] = det.coverage
         det.observations.save(args.output)

@@ -58,3 +58,46 @@ def corner_errors(detected: Observations, reference: Observations, cols: int | N
     return {"median": stats[0], "p95": stats[1], "max": stats[2], "n": int(d.size),
             "n_wrong": int(np.sum(d > MATCH_PX)), "views": views,
             "min_lattice_agreement": min(agree) if agree else None, "distances": d}
+
+
+def best_motion(ours: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The lattice motion (rotation/mirror (2, 2), integer shift (2,)) mapping most of
+    ours (N, 2) onto ref (N, 2) (col, row) pairs; None without pairs."""
+    best = None
+    for rot in MOTIONS:
+        t, counts = np.unique(np.rint(ref - ours @ rot.T).astype(np.int64), axis=0, return_counts=True)
+        k = int(counts.argmax())
+        if best is None or counts[k] > best[0]:
+            best = (int(counts[k]), rot, t[k])
+    return None if best is None else (best[1], best[2])
+
+
+def same_id_errors(detected: Observations, reference: Observations, cols: int) -> dict[str, Any]:
+    """Distance (px) from each detected corner to the reference corner of the *same* board
+    corner, ids mapped through the view's lattice motion (found from corners within
+    MATCH_PX). Corners the reference has no counterpart for are counted apart
+    (``n_unreferenced``): a reference detector that missed a corner does not make ours wrong.
+    Returns ``{"distances", "n", "n_unreferenced", "views"}``."""
+    ref = {v.name: v for v in reference.views}
+    dists, extra, views = [], 0, 0
+    for v in detected.views:
+        r = ref.get(v.name)
+        if r is None or len(r) == 0 or len(v) == 0 or v.ids is None or r.ids is None:
+            continue
+        views += 1
+        d, j = cKDTree(r.image_points).query(v.image_points)
+        m = d < MATCH_PX
+        ours = np.stack([v.ids % cols, v.ids // cols], 1)
+        theirs = np.stack([r.ids % cols, r.ids // cols], 1)
+        motion = best_motion(ours[m], theirs[j[m]]) if m.any() else None
+        if motion is None:
+            extra += len(v)
+            continue
+        mapped = ours @ motion[0].T + motion[1]
+        lookup = {(int(a), int(b)): k for k, (a, b) in enumerate(theirs)}
+        k = np.array([lookup.get((int(a), int(b)), -1) for a, b in mapped])
+        has = k >= 0
+        dists.append(np.linalg.norm(v.image_points[has] - r.image_points[k[has]], axis=1))
+        extra += int((~has).sum())
+    d = np.concatenate(dists) if dists else np.zeros(0)
+    return {"distances": d, "n": int(d.size), "n_unreferenced": extra, "views": views}

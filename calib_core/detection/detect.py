@@ -48,6 +48,7 @@ class Detection:
     reports: list[ImageReport]
     coverage: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    model_added: int | None = None  # corners the re-detection through ``calibration`` added (None: none given)
 
 
 def image_paths(items: Iterable[str | Path]) -> list[Path]:
@@ -73,17 +74,28 @@ def image_paths(items: Iterable[str | Path]) -> list[Path]:
 
 
 def detect_images(paths, board: BoardSpec, progress: Callable[[int, int], None] | None = None,
-                  workers: int | None = None) -> Detection:
+                  workers: int | None = None, calibration=None) -> Detection:
     """Detect ``board`` in every image of ``paths`` (files or folders).
 
     progress(done, total) is called after each image. A bad image never
-    raises: it becomes a rejected report.
+    raises: it becomes a rejected report. With ``calibration`` (a first
+    ``Calibration`` of this camera), every board corner is also predicted through
+    its model from each view's pose and confirmed (``model_guided.py``);
+    ``Detection.model_added`` says how many corners that added.
     """
     files = image_paths([paths] if isinstance(paths, (str, Path)) else paths)
     names = _unique_names(files)
-    results = _run_all(files, names, board, progress, workers)
+    model = None if calibration is None else calibration.model
+    results = _run_all(files, names, board, progress, workers, model)
     _reject_odd_sizes(results)
-    return _assemble(results, board)
+    det = _assemble(results, board)
+    if calibration is not None:
+        det.model_added = sum(r.model_added or 0 for r in results if r.status == "used")
+        if det.observations is not None and tuple(det.observations.image_size) != tuple(calibration.image_size):
+            det.warnings.append(f"the calibration is of {calibration.image_size[0]}x{calibration.image_size[1]} "
+                                f"images, these are {det.observations.image_size[0]}x"
+                                f"{det.observations.image_size[1]}: its predictions are off and add few corners")
+    return det
 
 
 def _unique_names(files: list[Path]) -> list[str]:
@@ -98,7 +110,7 @@ def _unique_names(files: list[Path]) -> list[str]:
     return out
 
 
-def _run_all(files, names, board, progress, workers) -> list[ImageResult]:
+def _run_all(files, names, board, progress, workers, model=None) -> list[ImageResult]:
     total = len(files)
     n = workers if workers is not None else (os.cpu_count() or 1)
     n = max(1, min(n, total))
@@ -107,7 +119,8 @@ def _run_all(files, names, board, progress, workers) -> list[ImageResult]:
     if n > 1:
         try:
             with cf.ProcessPoolExecutor(n, mp_context=_context(), initializer=_init_worker) as pool:
-                futures = {pool.submit(detect_file, str(f), board, nm): k for k, (f, nm) in enumerate(zip(files, names, strict=True))}
+                futures = {pool.submit(detect_file, str(f), board, nm, model): k
+                           for k, (f, nm) in enumerate(zip(files, names, strict=True))}
                 for fut in cf.as_completed(futures):
                     k = futures[fut]
                     try:
@@ -121,7 +134,7 @@ def _run_all(files, names, board, progress, workers) -> list[ImageResult]:
             pass  # no pool here (sandbox, no /dev/shm...): fall back to this process
     for k, (f, nm) in enumerate(zip(files, names, strict=True)):
         if results[k] is None:
-            results[k] = detect_file(f, board, nm)
+            results[k] = detect_file(f, board, nm, model)
             done += 1
             if progress:
                 progress(done, total)

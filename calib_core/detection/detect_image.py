@@ -19,6 +19,8 @@ import numpy as np
 
 from ..board import BoardSpec
 from .grid import expand, gap_strides, lattice_score, place_grid
+from .grow import grow_board
+from .model_guided import model_guided
 
 log = logging.getLogger("freecal.detect")
 
@@ -30,7 +32,7 @@ MAX_REFINE_SHIFT = 1.0    # px a final cornerSubPix may move a detector's corner
 SB_FLAGS = cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
 CLASSIC_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
 MIN_LATTICE_SCORE = 0.8   # share of grid cells that must read as one checker square
-SEEDS = (4, 5, 3)          # seed grid sizes for partial boards, tried in turn (see _grown_grid)
+SEEDS = (4, 5, 3, 6)       # seed grid sizes for partial boards, tried in turn (see _grown_grid; 6: rendered fisheye view 2)
 SUBPIX = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 40, 1e-3)
 
 
@@ -47,6 +49,7 @@ class ImageResult:
     height: int | None = None
     ids: np.ndarray | None = None
     points: np.ndarray | None = None
+    model_added: int | None = None   # corners the re-detection through a calibration added
 
 
 def read_gray(path: str | Path) -> np.ndarray | None:
@@ -76,8 +79,10 @@ class TooManyPixels(ValueError):
     """The image declares more pixels than OpenCV may decode here."""
 
 
-def detect_file(path: str | Path, board: BoardSpec, name: str | None = None) -> ImageResult:
-    """Detect the board in one image file; every failure becomes a rejected result."""
+def detect_file(path: str | Path, board: BoardSpec, name: str | None = None, model=None) -> ImageResult:
+    """Detect the board in one image file; every failure becomes a rejected result.
+    With a camera ``model`` (a first calibration's), every board corner is also predicted
+    through it and confirmed (``model_guided``)."""
     name = name or Path(path).name
     try:
         try:
@@ -86,7 +91,7 @@ def detect_file(path: str | Path, board: BoardSpec, name: str | None = None) -> 
             return ImageResult(name, "rejected", 0, str(exc))
         if gray is None:
             return ImageResult(name, "rejected", 0, "could not decode the file as an image")
-        res = detect_gray(gray, board)
+        res = detect_gray(gray, board, model)
         res.name = name
         return res
     except Exception as exc:  # a detector crash on one image must not cost the others
@@ -104,8 +109,8 @@ def failure_reason(exc: Exception) -> str:
             "re-save it as PNG or JPEG and upload it again")
 
 
-def detect_gray(gray: np.ndarray, board: BoardSpec) -> ImageResult:
-    """Detect in a greyscale image (H, W) uint8."""
+def detect_gray(gray: np.ndarray, board: BoardSpec, model=None) -> ImageResult:
+    """Detect in a greyscale image (H, W) uint8; ``model``: as in ``detect_file``."""
     # The sector-based detector draws from OpenCV's global RNG: reseed so a
     # result depends on the image alone, not on which images a worker saw before.
     cv2.setRNGSeed(0x5EED)
@@ -140,6 +145,14 @@ def detect_gray(gray: np.ndarray, board: BoardSpec) -> ImageResult:
         # (a tag or glare next to the corner): such a corner is dropped, not guessed.
         keep = np.linalg.norm(refined - pts, axis=1) <= MAX_REFINE_SHIFT / scale
         ids, pts = ids[keep], refined[keep]
+    if board.type == "chessboard" and len(ids) >= MIN_CORNERS:
+        # OpenCV's grids stop short of the visible board where distortion bends its lines:
+        # grow them over all of it, and check every corner is an X-junction of the right colours.
+        hook = None if model is None else model_guided(gray, model, board.square_size)
+        grown = grow_board(gray, ids, pts, board.cols, board.rows, after_growth=hook)
+        ids, pts = grown.astuple()
+        if model is not None:
+            base.model_added = grown.after_growth_added
     base.sharpness = sharp
     base.n_corners = len(ids)
     if len(ids) < MIN_CORNERS:

@@ -27,3 +27,20 @@ def test_calibrate_from_images_needs_a_board(tmp_path, capsys):
     assert "--board SPEC" in capsys.readouterr().err
     assert cli(["calibrate", str(root / "left01.jpg"), "--board", "chessboard:9x6"]) == 2
     assert "COLSxROWS:SQUARE" in capsys.readouterr().err
+
+
+def test_detect_refine_with_a_calibration_says_what_it_added(tmp_path, capsys):
+    """freecal detect --refine-with CAL.json: corners predicted through a first calibration."""
+    root = shared_data("opencv-stereo-9x6")
+    left = sorted(str(p) for p in root.glob("left*.jpg"))
+    cal = tmp_path / "cal.json"
+    assert cli(["calibrate", *left, "--board", "chessboard:9x6:1mm", "--method", "zhang", "-q", "-o", str(cal)]) == 0
+    capsys.readouterr()
+    out = tmp_path / "obs.json"
+    assert cli(["detect", *left, "--board", "chessboard:9x6:1mm", "--refine-with", str(cal), "-q", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "13/13 images used" in text
+    assert "re-detection through the calibration added" in text and "corners" in text
+    # A file that is no calibration is refused in words, before any detection.
+    assert cli(["detect", *left[:1], "--board", "chessboard:9x6:1mm", "--refine-with", str(out)]) == 2
+    assert "format" in capsys.readouterr().err

@@ -99,3 +99,22 @@ def test_babelcalib_fisheye_partial_boards_match_reference():
     # One consistent lattice in every view, including the two steep views where LARGER grows
     # a grid over every other board row (grid.gap_strides); before that fix 15-22 %.
     assert min(lattice_ok) >= 0.98, np.round(lattice_ok, 2)
+
+
+def test_babelcalib_grown_corners_match_the_authors_same_corners():
+    """Grown over the whole visible board (issue #19): as many corners as the authors'
+    detector found, each within a fraction of a pixel of the authors' corner of the same id
+    (ids mapped through one lattice motion per view). A wrong id would sit a whole square
+    (8 px or more) away: none does."""
+    from benchmarks.bench_detect import babel_reference
+    from calib_core.detection.corner_error import same_id_errors
+
+    root = shared_data("babelcalib-ov-plane-fisheye")
+    det = _detect("babelcalib-ov-plane-fisheye", "chessboard:22x22:7.5mm")
+    e = same_id_errors(det.observations, babel_reference(root), 22)
+    d = e["distances"]
+    assert det.observations.n_points >= 9000, det.observations.n_points   # the authors': 9587
+    assert np.mean(d < 0.5) >= 0.99, np.mean(d < 0.5)
+    assert np.median(d) < 0.1
+    assert d.max() < 4.0, d.max()                                          # no corner under a wrong id
+    assert e["n_unreferenced"] <= 0.02 * det.observations.n_points

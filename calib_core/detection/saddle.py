@@ -1,0 +1,90 @@
+"""Is there a chessboard X-junction here, with the square colours its id says?
+
+A grown or predicted corner is only kept if the image around it reads as the
+corner of four checker squares: two diagonally opposite quadrants bright, the
+other two dark, and *which* diagonal is bright fixed by the corner's lattice
+parity (the square whose top-left corner is corner (r, c) is bright iff r + c
+is even, OpenCV's convention). A point on a straight edge, on the board's
+white border, in a tag, or one lattice step off (a wrong id) fails: the last
+is the parity test, and it is why a wrong id is rarer than a missing corner.
+Each of the four edges leaving the corner must also separate a bright square
+from a dark one (``arm_steps``), which a T-junction on the board's outer line
+does not. Where the corner then sits exactly is ``corner_refine``'s job.
+
+Everything here works on arrays of N corners at once.
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+# Sample points per quadrant in units of the local lattice steps, near the corner: the
+# tags of tagged boards (BabelCalib's AprilTags, border 2 of 9 bits) start beyond 0.22
+# of a square, so these stay on the squares' plain margins.
+_QUARTER = np.array([[0.2, 0.2], [0.12, 0.28], [0.28, 0.12]])
+_SIGNS = np.array([[-1, -1], [1, -1], [-1, 1], [1, 1]])  # TL, TR, BL, BR in (along row, down column)
+MIN_CONTRAST = 12.0      # grey levels between a corner's bright and dark quadrants
+SEPARATION = 0.35        # darkest bright quadrant must exceed the brightest dark one by this share
+
+
+def quadrant_levels(gray: np.ndarray, pts: np.ndarray, e_col: np.ndarray, e_row: np.ndarray,
+                    reach: np.ndarray | float = 1.0) -> np.ndarray:
+    """Grey level (N, 4) of the TL, TR, BL, BR quadrants around corners pts (N, 2), the
+    quadrants spanned by the local lattice steps e_col (to the next column) and e_row (to the
+    next row), (N, 2) each: the median of three samples, so one tag bit or speck cannot flip it.
+    reach (N,) scales the samples' distance (1: a fifth of a square along the diagonal)."""
+    offs = (_SIGNS[:, None, :] * _QUARTER[None, :, :]).reshape(-1, 2)        # (12, 2)
+    r = np.broadcast_to(np.asarray(reach, dtype=np.float64), (len(pts),))[:, None, None]
+    at = pts[:, None, :] + r * (offs[None, :, :1] * e_col[:, None, :] + offs[None, :, 1:] * e_row[:, None, :])
+    m = at.astype(np.float32).reshape(-1, 1, 2)
+    vals = cv2.remap(gray, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return np.median(vals.reshape(len(pts), 4, len(_QUARTER)).astype(np.float64), axis=2)
+
+
+def is_corner(gray: np.ndarray, pts: np.ndarray, e_col: np.ndarray, e_row: np.ndarray, even: np.ndarray,
+              half: np.ndarray) -> np.ndarray:
+    """(N,) bool: an X-junction of the right colours both a fifth of a square out and within
+    the refinement window. The near test matters on large squares: there a point that
+    cornerSubPix left on an edge, a window's width from the corner, still has the right
+    colours a fifth of a square out."""
+    spacing = np.minimum(np.linalg.norm(e_col, axis=1), np.linalg.norm(e_row, axis=1))
+    near = np.clip(0.6 * half / np.maximum(0.2 * spacing, 1e-9), 0.0, 1.0)
+    levels = quadrant_levels(gray, pts, e_col, e_row)
+    contrast = np.abs(levels[:, [0, 3]].mean(1) - levels[:, [1, 2]].mean(1))
+    step = arm_steps(gray, pts, e_col, e_row)
+    return (is_x_junction(levels, even) & is_x_junction(quadrant_levels(gray, pts, e_col, e_row, near), even)
+            & (step >= ARM_CONTRAST * contrast))
+
+
+ARM_AT = 0.25         # of a square along each of the four edges leaving a corner ...
+ARM_SIDE = 0.12       # ... sampled this far either side of it (inside a tag's black border)
+ARM_CONTRAST = 0.35   # of the corner's contrast, across every arm
+
+
+def arm_steps(gray: np.ndarray, pts: np.ndarray, e_col: np.ndarray, e_row: np.ndarray) -> np.ndarray:
+    """(N,) weakest grey-level step across the four edges leaving each corner, halfway to the
+    next corner: on a true corner each separates a bright square from a dark one. A corner on the board's outermost line (the white
+    margin and a printed frame beyond it: a T-junction that passes the quadrant test) has
+    one arm with the same colour on both sides."""
+    arms = np.stack([e_col, -e_col, e_row, -e_row], 1)                 # (N, 4, 2)
+    across = np.stack([e_row, e_row, e_col, e_col], 1)
+    side = np.linalg.norm(across, axis=-1, keepdims=True)
+    off = across / np.maximum(side, 1e-9) * np.clip(ARM_SIDE * side, 1.5, 0.2 * side)
+    mid = pts[:, None, :] + ARM_AT * arms
+    m = np.stack([mid + off, mid - off], 2).astype(np.float32).reshape(-1, 1, 2)
+    v = cv2.remap(gray, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    v = v.reshape(len(pts), 4, 2).astype(np.float64)
+    step = np.abs(v[..., 0] - v[..., 1]).min(1)
+    return step
+
+
+def is_x_junction(levels: np.ndarray, even: np.ndarray) -> np.ndarray:
+    """(N,) bool: quadrant levels (N, 4) show a checker corner whose TL and BR squares are
+    bright where even (N,) (corner (r, c) with r + c even), dark elsewhere."""
+    diag = levels[:, [0, 3]]       # TL, BR
+    anti = levels[:, [1, 2]]       # TR, BL
+    bright = np.where(even[:, None], diag, anti)
+    dark = np.where(even[:, None], anti, diag)
+    contrast = bright.mean(1) - dark.mean(1)
+    gap = bright.min(1) - dark.max(1)
+    return (contrast >= MIN_CONTRAST) & (gap >= SEPARATION * contrast)

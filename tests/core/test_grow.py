@@ -1,0 +1,113 @@
+"""Growing a detected lattice over the whole visible board (grow.py, saddle.py, model_guided.py)."""
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from calib_core import synth
+from calib_core.board import BoardSpec
+from calib_core.calibration import Calibration
+from calib_core.detection.corner_error import best_motion
+from calib_core.detection.detect_image import detect_gray
+from calib_core.detection.grow import Lattice, grow_board
+from calib_core.detection.image_circle import distance_to_unlit
+from calib_core.detection.model_guided import model_guided
+from calib_core.models.fisheye import FisheyeModel
+from calib_core.synth import render
+
+BOARD = BoardSpec.parse("chessboard:22x22:50mm")
+
+
+@functools.cache
+def _view(k: int):
+    """Rendered fisheye training view k: image and exact corners (ids, pixels)."""
+    s = synth.generate("fisheye", 0.0, 0, 10)
+    v = s.truth["train_views"][k]
+    pose = np.array(v["rvec"] + v["tvec"])
+    img = render.render_view("fisheye", pose, rng=np.random.default_rng(k))
+    ids, _, uv = render.true_corners("fisheye", pose)
+    return img, ids, uv
+
+
+def _against_truth(ids, pts, true_ids, true_uv):
+    """Per detected corner: the true id it maps to through the view's lattice motion, and the
+    distance to that corner's true pixel (partial-board ids are defined up to that motion)."""
+    ours = np.stack([ids % 22, ids // 22], 1)
+    d = np.linalg.norm(pts[:, None] - true_uv[None], axis=-1)
+    near = d.argmin(1)
+    m = d[np.arange(len(pts)), near] < 1.0
+    rot, t = best_motion(ours[m], np.stack([true_ids[near[m]] % 22, true_ids[near[m]] // 22], 1))
+    mapped = ours @ rot.T + t
+    mapped_ids = mapped[:, 1] * 22 + mapped[:, 0]
+    lookup = {int(i): k for k, i in enumerate(true_ids)}
+    k = np.array([lookup.get(int(i), -1) for i in mapped_ids])
+    assert (k >= 0).all(), "a corner mapped to no true corner: a wrong id"
+    return k, np.linalg.norm(pts - true_uv[k], axis=1)
+
+
+def test_grown_grid_reaches_the_image_edge_with_true_ids():
+    """View 3: the board runs off the right edge of the frame, bending hard there."""
+    img, true_ids, true_uv = _view(3)
+    res = detect_gray(img, BOARD)
+    assert res.status == "used"
+    k, err = _against_truth(res.ids, res.points, true_ids, true_uv)
+    assert len(set(k.tolist())) == len(k)                      # one detected corner per true corner
+    assert np.median(err) < 0.1 and err.max() < 1.0, (np.median(err), err.max())
+    w = synth.IMAGE_SIZE[0]
+    edge = true_uv[:, 0] > w - 60                               # true corners within 60 px of the right edge
+    found = np.isin(np.arange(len(true_ids)), k)
+    assert edge.sum() >= 10 and found[edge].mean() >= 0.8, (edge.sum(), found[edge].mean())
+    assert len(res.ids) >= 0.95 * len(true_ids), (len(res.ids), len(true_ids))
+
+
+def test_a_calibration_predicts_the_rest_of_the_board_from_a_small_patch():
+    img, true_ids, true_uv = _view(3)
+    fx, fy, cx, cy = synth.INTRINSICS
+    model = FisheyeModel(np.array([fx, fy, cx, cy, 0.0]), [0.05, 0.02, 0.01, 0.005])  # the true lens
+    patch = np.isin(true_ids // 22, [10, 11, 12]) & np.isin(true_ids % 22, [10, 11, 12])
+    hook = model_guided(img, model, 50.0)
+    lat = Lattice.of(true_ids[patch], true_uv[patch], 22, 22)   # the exact corners of a 3 x 3 patch
+    assert hook(lat, distance_to_unlit(img)) >= 300             # one pass through the model finds most of the board
+    i, j = np.nonzero(lat.known)
+    grown = grow_board(img, (i - 22) * 22 + (j - 22), lat.p[i, j], 22, 22, after_growth=hook)
+    k, err = _against_truth(grown.ids, grown.points, true_ids, true_uv)
+    assert err.max() < 1.0 and np.median(err) < 0.1
+
+
+def test_detect_images_reports_what_the_calibration_added(tmp_path):
+    import cv2
+
+    from calib_core.detection.detect import detect_images
+
+    img, _, _ = _view(3)
+    cv2.imwrite(str(tmp_path / "v.png"), img)
+    cv2.imwrite(str(tmp_path / "blank.png"), np.full((1280, 1024), 128, np.uint8))
+    fx, fy, cx, cy = synth.INTRINSICS
+    cal = Calibration(FisheyeModel(np.array([fx, fy, cx, cy, 0.0]), [0.05, 0.02, 0.01, 0.005]), synth.IMAGE_SIZE,
+                      "fisheye")
+    det = detect_images(tmp_path, BOARD, workers=1, calibration=cal)
+    assert det.model_added is not None and det.model_added >= 0
+    blank = next(r for r in det.reports if r.name == "blank.png")
+    assert blank.status == "rejected" and blank.reason == "board not found"   # plain words, no OpenCV text
+    plain = detect_images(tmp_path, BOARD, workers=1)
+    assert plain.model_added is None
+    assert det.observations.n_points >= plain.observations.n_points
+
+
+def test_corners_one_step_off_fail_the_colour_test():
+    """A corner given the id of its neighbour (one column over) has the wrong square colours
+    around it: it is dropped, never kept under the wrong id."""
+    from calib_core.detection import corner_refine, saddle
+    from calib_core.detection.grow import Lattice, lattice_steps
+
+    img, true_ids, true_uv = _view(0)
+    lat = Lattice.of(true_ids, true_uv, 22, 22)
+    e_col, e_row = lattice_steps(lat.p)
+    k = lat.known & np.isfinite(e_col[..., 0]) & np.isfinite(e_row[..., 0])
+    even = lat.even()[k]
+    half = corner_refine.half_window(corner_refine.nearest_corner(e_col[k], e_row[k]))
+    right = saddle.is_corner(img, lat.p[k], e_col[k], e_row[k], even, half)
+    wrong = saddle.is_corner(img, lat.p[k], e_col[k], e_row[k], ~even, half)
+    assert right.mean() > 0.9
+    assert wrong.mean() < 0.01

@@ -57,9 +57,9 @@ from .lenses import (
     true_distort,
     true_project,
 )
-from .protocol import SynthSet, board_points, generate, look_at_pose
+from .protocol import SynthSet, board_points, generate, look_at_pose, pose_looking_at, shoot
 
 __all__ = ["DECENTRE", "HOLDOUT_BOARD", "IMAGE_SIZE", "INTRINSICS", "KINDS", "LENSES", "PAPER_KINDS", "SQUARE", "TILT",
            "TRAIN_BOARD", "TRUTH_FORMAT", "SynthSet", "asymmetric_offset", "board_points", "decentred_distort",
-           "direction_cosines", "freeform_offset", "generate", "look_at_pose", "opencv_distort", "true_distort",
+           "direction_cosines", "freeform_offset", "generate", "look_at_pose", "pose_looking_at", "shoot", "opencv_distort", "true_distort",
            "true_project"]

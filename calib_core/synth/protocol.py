@@ -55,7 +55,7 @@ def _visible(kind: str, pose: np.ndarray, pts: np.ndarray, margin: float = 0.0):
     return ok, uv
 
 
-def _pose_looking_at(target: np.ndarray, dist: float, tilt: np.ndarray, roll: float) -> np.ndarray:
+def pose_looking_at(target: np.ndarray, dist: float, tilt: np.ndarray, roll: float) -> np.ndarray:
     """Pose whose optical axis meets the board at ``target`` from ``dist`` mm,
     the board tilted by ``tilt`` (about the camera's x and y axes, radians)."""
     r = Rotation.from_rotvec([0.0, 0.0, roll]) * Rotation.from_rotvec([tilt[0], 0.0, 0.0]) * Rotation.from_rotvec([0.0, tilt[1], 0.0])
@@ -71,7 +71,7 @@ def _train_poses(rng: np.random.Generator, n_views: int) -> np.ndarray:
         phi = 2 * np.pi * k / n_views + rng.uniform(-0.3, 0.3)
         tilt = np.radians(rng.uniform(15, 35)) * np.array([np.cos(phi), np.sin(phi)]) if k else np.zeros(2)
         target = centre + np.array([*rng.uniform(-100, 100, size=2), 0.0])
-        poses.append(_pose_looking_at(target, rng.uniform(160, 220), tilt, rng.uniform(-0.5, 0.5)))
+        poses.append(pose_looking_at(target, rng.uniform(160, 220), tilt, rng.uniform(-0.5, 0.5)))
     return np.array(poses)
 
 
@@ -86,7 +86,9 @@ def _holdout_poses() -> np.ndarray:
     return np.array(poses)
 
 
-def _views(kind, poses, pts, sigma, rng, prefix):
+def shoot(kind, poses, pts, sigma, rng, prefix):
+    """The views of board points ``pts`` a camera at ``poses`` sees through the true lens, with noise ``sigma``
+    (views with fewer than 20 corners left out), and the poses kept."""
     views, kept_poses = [], []
     ids = np.arange(len(pts))
     for k, pose in enumerate(poses):
@@ -113,10 +115,10 @@ def generate(kind: str = "radial", sigma: float = 0.3, seed: int = 0, n_views: i
     rng = np.random.default_rng(seed)
     cols, rows = TRAIN_BOARD
     board = {"type": "chessboard", "cols": cols, "rows": rows, "square_size": SQUARE, "units": "mm"}
-    train_views, train_poses = _views(kind, _train_poses(rng, n_views), board_points(cols, rows), sigma, rng, "train_")
+    train_views, train_poses = shoot(kind, _train_poses(rng, n_views), board_points(cols, rows), sigma, rng, "train_")
     hc, hr = HOLDOUT_BOARD
     hboard = {"type": "chessboard", "cols": hc, "rows": hr, "square_size": SQUARE, "units": "mm"}
-    hold_views, hold_poses = _views(kind, _holdout_poses(), board_points(hc, hr), 0.0, rng, "holdout_")
+    hold_views, hold_poses = shoot(kind, _holdout_poses(), board_points(hc, hr), 0.0, rng, "holdout_")
     fx, fy, cx, cy = INTRINSICS
     truth = {
         "format": TRUTH_FORMAT,

@@ -5,6 +5,7 @@ import pytest
 from calib_core import calibrate
 from calib_core.board import BoardSpec
 from calib_core.detection.detect import detect_images
+from calib_core.errors import DegenerateViews
 from calib_core.fitting.init import folds_inside_image, initialise
 from calib_core.fitting.solve import Data
 from calib_core.models import camera
@@ -39,15 +40,18 @@ def test_a_kannala_brandt_camera_that_folds_inside_the_image_is_detected(coeffic
 def test_a_narrow_real_set_gets_an_initial_camera_without_a_fold():
     """OpenCV's ChArUco sample (5 views, 110 corners, 22° off axis at most): all four
     Kannala–Brandt coefficients free folded the lens inside the image, and the
-    paper's model, started from that camera, diverged (rmse 25 px)."""
+    paper's model, started from that camera, diverged (rmse 25 px). Its boards are
+    all tilted the same way (normals within about 2°), so the focal length is not
+    determined: cv2.calibrateCameraExtended gives fx 405 ± 130 px without distortion,
+    467 ± 15 with five coefficients. A calibration is refused, saying what to shoot."""
     folder = shared_data("opencv-charuco-5x7")
     obs = detect_images(folder, BoardSpec.parse("charuco:5x7:40mm:20mm:DICT_6X6_250")).observations
     data, _, _ = to_data(obs)
     init = initialise(data, obs.image_size)
     assert not folds_inside_image(init.model, init.poses, data, obs.image_size)
     assert init.rmse < 0.5
-    cal = calibrate(obs, "bspline", core="none")
-    assert cal.diagnostics["solver"]["status"] == "converged" and cal.metrics["rmse"] < 0.5
+    with pytest.raises(DegenerateViews, match="tilted the same way"):
+        calibrate(obs, "bspline", core="none")
 
 
 def test_boards_seen_up_to_100_degrees_off_axis_are_posed():

@@ -10,7 +10,6 @@ from calib_core.board import BoardSpec
 from calib_core.detection.corner_error import corner_errors
 from calib_core.detection.detect_image import detect_gray
 from calib_core.observations import Observations
-from calib_core.synth import protocol as synth_protocol
 from calib_core.synth import render
 
 
@@ -73,7 +72,7 @@ def test_whole_board_views_get_the_true_ids_and_corners():
     rng = np.random.default_rng(1)
     errs = []
     for k, tilt in enumerate(np.radians([[0.0, 0.0], [25.0, -15.0]])):
-        pose = synth_protocol._pose_looking_at(np.array([200.0, 125.0, 0.0]), 800.0, tilt, 0.3 * k)
+        pose = synth.pose_looking_at(np.array([200.0, 125.0, 0.0]), 800.0, tilt, 0.3 * k)
         img = render.render_view("radial", pose, (9, 6), 50.0, rng=rng)
         ids, _, uv = render.true_corners("radial", pose, (9, 6), 50.0)
         res = detect_gray(img, board)

@@ -18,7 +18,7 @@ CENTRE = np.array([(COLS - 1) * synth.SQUARE / 2, (ROWS - 1) * synth.SQUARE / 2,
 
 
 def shot(kind: str, poses, sigma: float = 0.3, seed: int = 0) -> Observations:
-    views, _ = synth._views(kind, np.array(poses), synth.board_points(COLS, ROWS), sigma,
+    views, _ = synth.shoot(kind, np.array(poses), synth.board_points(COLS, ROWS), sigma,
                             np.random.default_rng(seed), "view_")
     board = {"type": "chessboard", "cols": COLS, "rows": ROWS, "square_size": synth.SQUARE, "units": "mm"}
     return Observations(synth.IMAGE_SIZE, views, board)
@@ -26,7 +26,7 @@ def shot(kind: str, poses, sigma: float = 0.3, seed: int = 0) -> Observations:
 
 def placed(rng, tilt_deg=(0.0, 0.0), roll: bool = True) -> np.ndarray:
     """A pose looking at a random point of the board from a random distance, with the given tilt."""
-    return synth._pose_looking_at(CENTRE + [*rng.uniform(-150, 150, 2), 0.0], rng.uniform(160, 260),
+    return synth.pose_looking_at(CENTRE + [*rng.uniform(-150, 150, 2), 0.0], rng.uniform(160, 260),
                                   np.radians(tilt_deg), rng.uniform(-0.5, 0.5) if roll else 0.0)
 
 

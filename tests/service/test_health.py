@@ -20,7 +20,7 @@ from backend.queue.supervisor import Supervisor
 @pytest.fixture
 def app(tmp_path):
     settings = Settings.from_env(env={}, data_dir=tmp_path / "data", viewer=False, lease_seconds=5.0, workers=1)
-    with TestClient(create_app(settings)) as c:
+    with TestClient(create_app(settings), base_url="http://127.0.0.1") as c:
         yield c
 
 
@@ -64,7 +64,7 @@ def test_a_job_waiting_while_a_worker_idles_is_a_stuck_queue_and_is_sent_again(a
 
 def test_queued_jobs_and_no_worker_at_all(tmp_path):
     settings = Settings.from_env(env={}, data_dir=tmp_path / "data", viewer=False, lease_seconds=5.0, workers=0)
-    with TestClient(create_app(settings)) as c:
+    with TestClient(create_app(settings), base_url="http://127.0.0.1") as c:
         assert c.get("/api/health").json()["status"] == "ok"  # workers run elsewhere, nothing waits
         jobs.create(c.app.state.ctx.db, "j1", "calibrate", None, "bspline", {})
         age(c, "j1", 6.0)

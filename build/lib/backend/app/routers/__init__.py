@@ -1,1 +1,0 @@
-"""One router per resource: sets, jobs (and their result files), health."""

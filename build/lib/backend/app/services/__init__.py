@@ -1,1 +1,0 @@
-"""What the handlers do, apart from HTTP: create, read and delete sets and jobs."""

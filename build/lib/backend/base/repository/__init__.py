@@ -1,1 +1,0 @@
-"""Reads and writes of the metadata tables, one module per table family."""

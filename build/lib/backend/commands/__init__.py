@@ -1,4 +1,0 @@
-"""Sub-commands of ``freecal``; each module has ``register(subparsers)``."""
-from . import calibrate, compare, demo, detect, evaluate, export, serve, synth, undistort, worker
-
-COMMANDS = [demo, synth, detect, calibrate, evaluate, compare, undistort, export, serve, worker]

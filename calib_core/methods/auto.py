@@ -6,10 +6,10 @@ the rational model, the paper's B-spline field, and a field over the
 rational core. A lens past the pinhole's reach (corners beyond ~89° off
 axis) gets Kannala–Brandt and a field over it instead, the only models that
 represent every corner. Every candidate that can fit the corners is scored
-on each view left out of its fit (``crossval.linearised_view_errors``; a
-field over a core holds the core's coefficients there as its fit does, as
-fitted to every view, which flatters it a little on very small sets) and
-the simplest within the noise of the lowest is kept (``choice.choose``); it is returned as its own method returns it, so
+on each view left out of its fit (``crossval.linearised_view_errors``; for a
+field over a core, the view leaves the core's own fit too) and the simplest
+within the noise of the lowest is kept (``choice.choose``); it is returned as
+its own method returns it, so
 the calibration is written with that model's type (``opencv``, ``fisheye``,
 ``bspline``, ``hybrid``) and ``settings.chosen`` names it.
 

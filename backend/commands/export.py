@@ -1,60 +1,97 @@
-"""freecal export CAL.json --to opencv|ros|mrcal|opencv5|opencv8|opencv14|kb4 [--model M] -o FILE"""
+"""freecal export CAL.json --to opencv|ros|mrcal|colmap|nerfstudio|kalibr|MODEL [--model M] -o FILE
+[--observations OBS.json] [--error-map MAP.npz] [--uncertainty [FILE]] [--alpha A | --keep K | --focal F]"""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 
 from calib_core import Calibration, Observations
 from calib_core.errors import SettingsError
-from calib_core.exports import LEAN_MODELS, cameramodel, exact_name, fit_lean, lean_yaml, parametric_part, ros_yaml
-from calib_core.exports.lean_fit import save_error_map
+from calib_core.exports import LEAN_MODELS, MODELS, TARGETS, export
+from calib_core.exports.lean_fit import FitError, save_error_map
 
-FORMATS = ("opencv", "ros", "mrcal")
-DEFAULT_MODEL = {"opencv": "opencv8", "ros": "opencv8", "mrcal": "opencv8"}
+from .undistort import ALPHA_HELP, FOCAL_HELP, KEEP, chosen_camera
+
+CONSUMERS = "; ".join(f"{t.name}: {t.label} ({', '.join(dict.fromkeys(t.models.values()))})" for t in TARGETS.values())
 
 
 def register(sub) -> None:
-    p = sub.add_parser("export", help="export a calibration for OpenCV, ROS or mrcal (lean-model fit)",
+    p = sub.add_parser("export", help="export a calibration for OpenCV, ROS, mrcal, COLMAP, nerfstudio or Kalibr",
                        description="Write a calibration in another tool's format. A calibration that is not "
-                                   "already the chosen lean model is fitted by one over the image, and the fit "
-                                   "error (what the export loses) is printed and stored.")
+                                   "already one of the tool's models is fitted by the closest one, and the fit "
+                                   "error (what the export loses) over the covered region and the whole image is "
+                                   "printed and stored. " + CONSUMERS)
     p.add_argument("calibration", help="freecal.calibration/1 JSON file")
-    p.add_argument("--to", required=True, choices=FORMATS + tuple(LEAN_MODELS),
-                   help="opencv (FileStorage YAML), ros (camera_info YAML), mrcal (.cameramodel); "
-                        "a model name (opencv8, kb4, ...) means opencv with that model")
-    p.add_argument("--model", choices=("auto",) + tuple(LEAN_MODELS), default="auto",
-                   help="lean model (auto: the calibration's own if it is one, else opencv8)")
+    p.add_argument("--to", required=True, choices=tuple(TARGETS) + tuple(LEAN_MODELS),
+                   help="the tool (" + ", ".join(TARGETS) + "); a model name (opencv8, kb4, ...) means opencv "
+                        "with that model")
+    p.add_argument("--model", choices=("auto",) + MODELS, default="auto",
+                   help="the exported model (auto: the calibration's own if the tool knows it, else the closest "
+                        "of the tool's models)")
     p.add_argument("--observations", help="fit only over the convex hull of these corners (freecal.observations/1)")
-    p.add_argument("--error-map", help="write the fit error map (.npz: error_px, u, v)")
+    p.add_argument("--error-map", help="write the fit error map (.npz: error_px, covered, u, v)")
+    p.add_argument("--uncertainty", nargs="?", const="", metavar="FILE",
+                   help="write the projection-uncertainty sidecar (JSON; default: OUTPUT.uncertainty.json); "
+                        "needs --observations")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--keep", choices=sorted([*KEEP, "covered"]),
+                   help="--to ros: the rectified camera P keeps valid pixels (default), all, or the covered region")
+    g.add_argument("--alpha", type=float, help="--to ros: the rectified camera P, " + ALPHA_HELP)
+    g.add_argument("--focal", type=float, help="--to ros: the rectified camera P, " + FOCAL_HELP)
     p.add_argument("-o", "--output", required=True, help="output file")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
-    cal = Calibration.load(args.calibration)
-    cal = parametric_part(cal) or cal  # a hybrid with a held zero field is its core, exactly
-    fmt, model = (args.to, args.model) if args.to in FORMATS else ("opencv", args.to)
-    if args.to not in FORMATS and args.model != "auto" and args.model != args.to:
+    fmt, model = (args.to, args.model) if args.to in TARGETS else ("opencv", args.to)
+    if args.to not in TARGETS and args.model not in ("auto", args.to):
         raise SettingsError(f"--to {args.to} already names the model; drop --model {args.model}")
-    if model == "auto":
-        model = exact_name(cal) or DEFAULT_MODEL[fmt]
-    covered = None
-    if args.observations:
-        obs = Observations.load(args.observations)
-        covered = np.concatenate([np.asarray(v.image_points, dtype=np.float64) for v in obs.views])
-    fit = fit_lean(cal, model, covered=covered)
-    if fmt == "opencv":
-        text = lean_yaml(fit, cal)
-    elif fmt == "ros":
-        text = ros_yaml(fit)
-    else:
-        text = cameramodel(fit)
-    Path(args.output).write_text(text)
+    target = TARGETS[fmt]
+    if model != "auto" and model not in target.models:
+        choices = " | ".join(f"{m} ({name})" for m, name in target.models.items())
+        raise SettingsError(f"--model {model}: {target.label} has no such model; choose --model {choices}, "
+                            "or leave --model out for the closest")
+    rectifying = args.keep or args.alpha is not None or args.focal is not None
+    if rectifying and fmt != "ros":
+        raise SettingsError("--keep, --alpha and --focal choose ROS's rectified camera (P); they apply to --to ros only")
+    if args.uncertainty is not None and not args.observations:
+        raise SettingsError("--uncertainty needs --observations OBS.json (the corners the calibration was fitted to)")
+    source = Calibration.load(args.calibration)
+    obs = Observations.load(args.observations) if args.observations else None
+    covered = None if obs is None else np.concatenate([np.asarray(v.image_points, dtype=np.float64) for v in obs.views])
+    done = export(source, fmt, model, covered,
+                  rectify=lambda fit: chosen_camera(fit.calibration, args.keep, args.alpha, args.focal, None, fit.region))
+    Path(args.output).write_text(done.text)
+    written = [args.output]
     if args.error_map:
-        save_error_map(args.error_map, fit)
-    what = "exact (the calibration is this model)" if fit.exact else (
-        f"fit error over {fit.n_samples} image samples: rms {fit.rms:.4f} px, p99 {fit.p99:.4f} px, max {fit.max:.4f} px")
-    print(f"{fmt} / {model}: {what}")
-    print(f"wrote {args.output}" + (f" and {args.error_map}" if args.error_map else ""))
+        save_error_map(args.error_map, done.fit)
+        written.append(args.error_map)
+    if args.uncertainty is not None:
+        from calib_core.exports.sidecar import uncertainty_sidecar
+        from calib_core.report.tables import uncertainty_map
+
+        path = args.uncertainty or f"{args.output}.uncertainty.json"
+        doc = uncertainty_sidecar(done, source, uncertainty_map(source, obs), args.output)
+        Path(path).write_text(json.dumps(doc) + "\n")
+        written.append(path)
+    fit = done.fit
+    if fit.exact:
+        print(f"{fmt} / {done.consumer_model} ({fit.name}): exact, the calibration is this model")
+    else:
+        choice = "" if not done.tried else ", the closest of " + ", ".join(
+            f"{f.name} (rms {f.covered.rms:.4g} px covered, {f.image.rms:.4g} px image)" for f in done.tried) + "; another with --model"
+        print(f"{fmt} / {done.consumer_model} ({fit.name}): fitted to the {fit.fitted_to} calibration{choice}")
+        print(f"fit error, covered region: {_error(fit.covered)}")
+        beyond = f" ({fit.n_beyond} samples past the model's reach)" if fit.n_beyond else ""
+        print(f"fit error, whole image: {_error(fit.image)}{beyond}")
+    if done.camera is not None:
+        print(f"rectified camera (P): focal {done.camera.focal:.3f} px, centre ({done.camera.cx:.3f}, "
+              f"{done.camera.cy:.3f})" + (f"; note: {done.camera.note}" if done.camera.note else ""))
+    print("wrote " + ", ".join(written))
     return 0
+
+
+def _error(e: FitError) -> str:
+    return f"rms {e.rms:.4f} px, p99 {e.p99:.4f} px, max {e.max:.4f} px over {e.n} samples"

@@ -291,7 +291,7 @@ def undistort_maps(cal: Calibration, camera: RectifiedCamera) -> tuple[np.ndarra
     ``INVALID`` (−1) where there is none."""
     w, h = camera.width, camera.height
     limit = np.tan(min(max_ray_angle(cal) * 1.02, np.radians(89.0)))
-    phi, radius = branch_radius(cal)
+    phi, radius = branch_radius(cal)  # the rectangle's own sampling: its pixels all stay valid
     out = np.empty((h * w, 2), dtype=np.float32)
     # Row blocks keep memory bounded; within a block everything is vectorised.
     rows_per_chunk = max(1, CHUNK // w)

@@ -86,6 +86,9 @@ def run(args) -> int:
         print(f"fit error, covered region: {_error(fit.covered)}")
         beyond = f" ({fit.n_beyond} samples past the model's reach)" if fit.n_beyond else ""
         print(f"fit error, whole image: {_error(fit.image)}{beyond}")
+    if fmt == "mrcal" and fit.region is None:
+        print("note: the calibration records no covered region, so the model has no valid_intrinsics_region; "
+              "give --observations OBS.json (its corners) to write one")
     if done.camera is not None:
         print(f"rectified camera (P): focal {done.camera.focal:.3f} px, centre ({done.camera.cx:.3f}, "
               f"{done.camera.cy:.3f})" + (f"; note: {done.camera.note}" if done.camera.note else ""))

@@ -247,3 +247,18 @@ def test_cli_exports_every_target_and_says_what_it_lost(tmp_path, capsys):
         with np.load(tmp_path / f"{name}.npz") as d:
             assert d["error_px"].shape == d["covered"].shape and d["image_max"] >= d["max"]
     assert json.loads((tmp_path / "transforms.json").read_text())["camera_model"] in ("OPENCV", "OPENCV_FISHEYE")
+
+
+@pytest.mark.slow
+def test_an_mrcal_export_without_a_covered_region_says_how_to_get_one(tmp_path, capsys):
+    cal = opencv4_calibration()
+    bare = type(cal)(cal.model, cal.image_size, cal.method)  # no coverage_hull recorded
+    bare.save(tmp_path / "bare.json")
+    assert cli(["export", str(tmp_path / "bare.json"), "--to", "mrcal", "-o", str(tmp_path / "m")]) == 0
+    assert "give --observations" in capsys.readouterr().out
+    assert "valid_intrinsics_region" not in (tmp_path / "m").read_text()
+    obs = synthetic("radial").train
+    obs.save(tmp_path / "obs.json")
+    assert cli(["export", str(tmp_path / "bare.json"), "--to", "mrcal", "-o", str(tmp_path / "m2"),
+                "--observations", str(tmp_path / "obs.json")]) == 0
+    assert "valid_intrinsics_region" in (tmp_path / "m2").read_text()

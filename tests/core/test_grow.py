@@ -4,6 +4,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+import pytest
 
 from calib_core import synth
 from calib_core.board import BoardSpec
@@ -46,6 +47,7 @@ def _against_truth(ids, pts, true_ids, true_uv):
     return k, np.linalg.norm(pts - true_uv[k], axis=1)
 
 
+@pytest.mark.slow
 def test_grown_grid_reaches_the_image_edge_with_true_ids():
     """View 3: the board runs off the right edge of the frame, bending hard there."""
     img, true_ids, true_uv = _view(3)
@@ -75,6 +77,7 @@ def test_a_calibration_predicts_the_rest_of_the_board_from_a_small_patch():
     assert err.max() < 1.0 and np.median(err) < 0.1
 
 
+@pytest.mark.slow
 def test_detect_images_reports_what_the_calibration_added(tmp_path):
     import cv2
 

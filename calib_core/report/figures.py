@@ -131,3 +131,29 @@ def knot_grid(cells: dict[str, Any]) -> bytes:
     ax.set_title(f"Knot grid {len(bu) - 1} × {len(bv) - 1}, corners per cell ({cells['positions']})", fontsize=9)
     fig.colorbar(im, ax=ax, label="corners", shrink=0.8)
     return _png(plt, fig)
+
+
+def projection_diff_map(diff: dict[str, Any]) -> bytes:
+    """|B(R A⁻¹(q)) − q| over the image (``evaluation.diff``), the region both
+    calibrations cover outlined; grey where a calibration cannot map the pixel."""
+    plt = _pyplot()
+    s = diff["image"]
+    title = "Projection difference, rotation fitted out" if diff["fitted_on"] != "none" else "Projection difference"
+    fig, ax = _image_axes(plt, diff["image_size"], title)
+    u, v = np.asarray(diff["u"], float), np.asarray(diff["v"], float)
+    mag = np.array([[np.nan if x is None else x for x in row] for row in diff["magnitude"]], float)
+    du, dv = (u[1] - u[0]) / 2, (v[1] - v[0]) / 2
+    ax.set_facecolor("0.85")
+    vmax = float(np.nanpercentile(mag, 99)) if np.isfinite(mag).any() else 1.0
+    im = ax.imshow(np.ma.masked_invalid(mag), extent=(u[0] - du, u[-1] + du, v[-1] + dv, v[0] - dv), cmap="magma",
+                   vmin=0, vmax=max(vmax, 1e-9), interpolation="nearest")
+    fig.colorbar(im, ax=ax, label="|difference| [px]", shrink=0.8)
+    if diff.get("covered") is not None:
+        ax.contour(u, v, np.asarray(diff["covered"], float), levels=[0.5], colors="white", linewidths=1.2)
+    text = (f"median {s['median']:.3g} px, p95 {s['p95']:.3g} px, max {s['max']:.3g} px over the image"
+            if s["n"] else "no pixel both calibrations can map")
+    if diff.get("covered") is not None:
+        text += "; white: covered by both"
+    ax.text(0.01, 0.01, text, transform=ax.transAxes, fontsize=8, color="white",
+            bbox={"facecolor": "black", "alpha": 0.5, "linewidth": 0})
+    return _png(plt, fig)

@@ -14,17 +14,7 @@ from calib_core.errors import CalibError
 
 from .commands import COMMANDS
 from .commands.output import stdout_session
-
-
-def version() -> str:
-    """freecal's version, from the installed package's metadata."""
-    from importlib.metadata import PackageNotFoundError
-    from importlib.metadata import version as installed
-
-    try:
-        return installed("freecal")
-    except PackageNotFoundError:  # run from a source tree that was never installed
-        return "unknown (not installed: pip install -e .)"
+from .version import version
 
 
 def build_parser() -> argparse.ArgumentParser:

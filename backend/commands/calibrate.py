@@ -158,25 +158,23 @@ def run(args) -> int:
 
 
 def write_report(folder: OutputFolder, cal, obs: Observations) -> list[str]:
-    """The results page's products and their figures, as files in ``folder``
-    (inside ``Outputs.writing``: they land with the other outputs, or not at all)."""
+    """The results page's products, their figures and the page itself (report.html, as
+    ``freecal report`` writes it) as files in ``folder`` (inside ``Outputs.writing``:
+    they land with the other outputs, or not at all)."""
     import json
 
     from calib_core.calibration import json_safe
-    from calib_core.report import figures, tables
+    from calib_core.report import tables
 
-    products = tables.report_files(cal, obs)
-    products["knot_cells.json"] = tables.knot_cells(cal, products["corner_residuals.json"])
-    products["uncertainty.json"] = tables.uncertainty_map(cal, obs)
-    files = {name: content for name, content in products.items() if content is not None}
-    for name, content in files.items():
+    from .report import write_report_page
+
+    products = tables.report_products(cal, obs)
+    for name, content in products.items():
         text = content if isinstance(content, str) else json.dumps(
             json_safe(content), indent=1 if name == "calibration.json" else None)
         folder.file(name).write(text)
-    for name, png in figures.report_figures(products).items():
-        folder.file(name).write(png)
-        files[name] = png
-    return sorted(files)
+    figures = write_report_page(folder.file("report.html"), folder, cal, obs, "calibration", products)
+    return sorted([*products, *figures, "report.html"])
 
 
 def print_summary(cal) -> None:

@@ -54,6 +54,10 @@ CASES = {  # name: (argv with {obs}, {cal}, {dir}, {noperm}; the flag named; wor
     "undistort -o in /proc": (["undistort", "{cal}", "-o", "/proc/maps"], "-o", ["cannot create files in /proc/"]),
     "synth -o names a file": (["synth", "-o", "{obs}"], "-o", ["is a file, not a folder"]),
     "synth -o without permission": (["synth", "-o", "{noperm}/set"], "-o", ["permission denied"]),
+    "report -o names a folder": (["report", "{cal}", "-o", "{dir}"], "-o", ["is a folder", "report.html"]),
+    "report --figures names a file": (["report", "{cal}", "-o", "{dir}/r.html", "--figures", "{obs}"], "--figures",
+                                      ["is a file, not a folder"]),
+    "diff --map in /proc": (["diff", "{cal}", "{cal}", "--map", "/proc/d.png"], "--map", ["cannot create files in /proc/"]),
     "-o - and --json": (["calibrate", "{obs}", "--method", "zhang", "-q", "-o", "-", "--json"], "-o -",
                         ["both write to standard output"]),
 }
@@ -86,11 +90,14 @@ def test_missing_parent_folders_are_created_for_every_command_and_flag(tmp_path,
         ["export", files["cal"], "--to", "opencv", "-o", f"{new}/c/cal.yaml", "--error-map", f"{new}/d/error.npz"],
         ["undistort", files["cal"], "-o", f"{new}/e/maps", "--size", "256x320"],
         ["synth", "-o", f"{new}/f/set"],
+        ["report", files["cal"], files["obs"], "-o", f"{new}/g/report.html", "--figures", f"{new}/h/figures"],
+        ["diff", files["cal"], files["cal"], "--map", f"{new}/i/diff.png"],
     ]
     for argv in runs:
         assert main(argv) == 0, capsys.readouterr().err
     for path in ("a/cal.json", "b/report/calibration.json", "b/report/residual_vectors.png", "c/cal.yaml",
-                 "d/error.npz", "e/maps/maps.npz", "e/maps/rectified_camera.json", "f/set/train.json"):
+                 "d/error.npz", "e/maps/maps.npz", "e/maps/rectified_camera.json", "f/set/train.json",
+                 "g/report.html", "h/figures/coverage.png", "i/diff.png", "b/report/report.html"):
         assert (new / path).is_file() and (new / path).stat().st_size > 0, path
     assert not [p for p in new.rglob(".*")], "no staging file or folder left behind"
     assert np.load(new / "d/error.npz")["error_px"].ndim == 2

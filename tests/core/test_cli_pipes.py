@@ -112,6 +112,8 @@ JSON_RUNS = {  # command: (argv with {obs}, {cal}, {dir}; a key of its JSON)
     "export": (["export", "{cal}", "--to", "opencv8", "-o", "{dir}/cal.yaml", "--json"], "fit_error"),
     "undistort": (["undistort", "{cal}", "-o", "{dir}/maps", "--size", "128x160", "--json"], "rectified_camera"),
     "synth": (["synth", "-o", "{dir}/set", "--json"], "written"),
+    "diff": (["diff", "{cal}", "{cal}", "--json"], "rotation_deg"),
+    "report": (["report", "{cal}", "-o", "{dir}/report.html", "--json"], "report"),
 }
 
 

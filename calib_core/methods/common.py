@@ -26,8 +26,9 @@ def scaled(progress: Progress, lo: float, hi: float) -> Progress:
 def named(progress: Progress, label: str) -> Progress:
     """``progress`` for the work of one candidate model or method among several:
     its stages carry its name ("Kannala-Brandt model: initialise"), so that five
-    "initialise" in a row say which model each one starts."""
-    return lambda stage, fraction: progress(f"{label}: {stage}", fraction)
+    "initialise" in a row say which model each one starts. A nested run's "done"
+    (``calibrate`` ends with it) becomes "finished": the run around it goes on."""
+    return lambda stage, fraction: progress(f"{label}: {'finished' if stage == 'done' else stage}", fraction)
 
 
 @dataclass

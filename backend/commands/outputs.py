@@ -88,6 +88,7 @@ class Outputs:
         self._folders: list[tuple[Path, Path]] = []  # (staging folder, target folder): its files land there
         self._made: list[Path] = []                  # folders created for the outputs, removed on failure
         self._stdout: list[bytes] = []               # what ``-`` receives, printed at the end
+        self._declared: dict[Path, str] = {}          # target → the flag that named it
         self._writing = False
 
     def file(self, path: str | None, flag: str, example: str = "out.json") -> OutputFile | None:
@@ -109,6 +110,10 @@ class Outputs:
                 _check_creatable(target.parent / ".freecal", flag, Path(path))
         else:
             _check_creatable(target, flag)
+        key = target.resolve()
+        if key in self._declared and (not target.exists() or _is_regular(target)):  # /dev/null twice is fine
+            raise OutputError(f"{flag} {path}: also given to {self._declared[key]}; give each output its own file")
+        self._declared[key] = flag
         return OutputFile(self, target, flag)
 
     def folder(self, path: str | None, flag: str) -> OutputFolder | None:
@@ -217,18 +222,6 @@ class OutputFile:
             tmp.write_bytes(raw)
         except OSError as exc:
             raise OutputError(f"{self.flag} {self.target}: could not write ({_reason(exc)})") from None
-
-    @contextlib.contextmanager
-    def path(self) -> Iterator[Path]:
-        """A path for a library that writes by file name (``np.savez``, ``cv2.imwrite``):
-        staged like ``write``; its suffix is the target's."""
-        if self.target is not None and (not self.target.exists() or _is_regular(self.target)):
-            yield self.outputs._temporary(self.target, self.flag)
-            return
-        with tempfile.TemporaryDirectory() as tmp:
-            name = Path(tmp) / ("out" + ("" if self.target is None else self.target.suffix))
-            yield name
-            self.write(name.read_bytes()) if self.target is None else self._direct(name.read_bytes())
 
     def _direct(self, raw: bytes) -> None:
         assert self.target is not None

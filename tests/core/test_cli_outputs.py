@@ -58,6 +58,8 @@ CASES = {  # name: (argv with {obs}, {cal}, {dir}, {noperm}; the flag named; wor
     "report --figures names a file": (["report", "{cal}", "-o", "{dir}/r.html", "--figures", "{obs}"], "--figures",
                                       ["is a file, not a folder"]),
     "diff --map in /proc": (["diff", "{cal}", "{cal}", "--map", "/proc/d.png"], "--map", ["cannot create files in /proc/"]),
+    "one file for two outputs": (["export", "{cal}", "--to", "opencv", "-o", "{dir}/x", "--error-map", "{dir}/x"],
+                                 "--error-map", ["also given to -o"]),
     "-o - and --json": (["calibrate", "{obs}", "--method", "zhang", "-q", "-o", "-", "--json"], "-o -",
                         ["both write to standard output"]),
 }

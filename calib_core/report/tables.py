@@ -17,15 +17,18 @@ import numpy as np
 from ..calibration import Calibration, json_safe
 from ..exports import opencv_yaml
 from ..observations import Observations
+from .distortion import distortion_maps
 
 HEATMAP_CELLS = (16, 12)   # columns, rows over the image
-FIELD_SAMPLES = (17, 13)   # distortion field sample grid (u, v)
+FIELD_SAMPLES = (33, 25)   # distortion field sample grid (u, v)
 UNCERTAINTY_STEP = 32.0    # px between the uncertainty map's samples
 
 
 def report_files(cal: Calibration, obs: Observations) -> dict[str, Any]:
     """File name → content (str for text, anything else as JSON) of every
     product of one calibration."""
+    if "camera" not in cal.diagnostics:  # the parameters' table the page leads with, in the calibration itself
+        cal.diagnostics["camera"] = camera(cal, obs)
     corners = corner_residuals(cal, obs)
     views = view_residuals(cal, corners)
     files: dict[str, Any] = {
@@ -103,15 +106,16 @@ def heatmap(corners: list[dict[str, Any]], image_size: tuple[int, int]) -> dict[
 
 
 def distortion_field(cal: Calibration) -> dict[str, Any]:
-    """Samples of observed pixel → its offset from the ideal pinhole pixel (observed − ideal)."""
-    w, h = cal.image_size
-    nu, nv = FIELD_SAMPLES
-    u, v = np.meshgrid(np.linspace(0, w - 1, nu), np.linspace(0, h - 1, nv))
-    uv = np.column_stack([u.ravel(), v.ravel()])
-    d = uv - cal.undistort_points(uv)
-    return {"grid": [nu, nv], "image_size": [w, h], "u": json_safe(uv[:, 0]), "v": json_safe(uv[:, 1]),
-            "dx": json_safe(d[:, 0]), "dy": json_safe(d[:, 1]),
-            "note": "observed pixel minus its ideal pinhole pixel; null where the ray is 90 degrees or more off axis"}
+    """The distortion maps over the image (``distortion.distortion_maps``: against
+    the pinhole, the field's own part, the lens as angles; ``default`` the one
+    that reads on this lens), with the pinhole map's Δx, Δy also at the top
+    level (observed − ideal pinhole pixel), as earlier readers take them."""
+    doc = distortion_maps(cal, FIELD_SAMPLES)
+    pinhole = doc["maps"]["pinhole"]
+    doc.update(dx=pinhole["dx"], dy=pinhole["dy"],
+               note="observed pixel minus its ideal pinhole pixel; null where the ray is 90 degrees or more off "
+                    "axis; 'maps' holds every view of the lens, 'default' the one that reads on it")
+    return doc
 
 
 def knot_grid(cal: Calibration) -> dict[str, Any] | None:
@@ -148,11 +152,9 @@ def knot_cells(cal: Calibration, corners: list[dict[str, Any]]) -> dict[str, Any
             "positions": where, "corners": np.round(pos[ok], 2).tolist(), "type": grid["type"]}
 
 
-def uncertainty_map(cal: Calibration, obs: Observations, step: float = UNCERTAINTY_STEP) -> dict[str, Any]:
-    """Projection uncertainty over a pixel grid (``evaluation.uncertainty``,
-    boards frame), from the calibration's own views and inliers; σ is
-    estimated from their residuals."""
-    from ..evaluation.uncertainty import projection_uncertainty
+def fitted_corners(cal: Calibration, obs: Observations):
+    """The corners the calibration was fitted to (its views, outliers left out)
+    as solver data, and their views' poses."""
     from ..pipeline import to_data
 
     data, names, local = to_data(obs.select([v.name for v in cal.views]))
@@ -160,7 +162,26 @@ def uncertainty_map(cal: Calibration, obs: Observations, step: float = UNCERTAIN
     if outliers:
         keep = np.array([(names[k], int(i)) not in outliers for k, i in zip(data.view_index, local, strict=True)])
         data = data.points(keep)
-    poses = np.array([cal.view(n).pose for n in names])
+    return data, np.array([cal.view(n).pose for n in names])
+
+
+def camera(cal: Calibration, obs: Observations) -> dict[str, Any]:
+    """The calibration's ``diagnostics.camera``: the model in words, every
+    parameter ± one standard deviation, the field of view and the verdict
+    (``evaluation.parameters``), from the corners it was fitted to."""
+    from ..evaluation.parameters import describe_camera
+
+    data, poses = fitted_corners(cal, obs)
+    return describe_camera(cal, data, poses)
+
+
+def uncertainty_map(cal: Calibration, obs: Observations, step: float = UNCERTAINTY_STEP) -> dict[str, Any]:
+    """Projection uncertainty over a pixel grid (``evaluation.uncertainty``,
+    boards frame), from the calibration's own views and inliers; σ is
+    estimated from their residuals."""
+    from ..evaluation.uncertainty import projection_uncertainty
+
+    data, poses = fitted_corners(cal, obs)
     um = projection_uncertainty(cal.model, poses, data, cal.image_size, step=step)
     doc = um.to_json()
     doc.update(covered=um.covered.tolist(), image_size=list(cal.image_size), step=step,

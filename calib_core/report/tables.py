@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..calibration import Calibration, json_safe
+from ..evaluation.parameters import fitted_parameter_count
 from ..exports import opencv_yaml
 from ..observations import Observations
 from .distortion import distortion_maps
@@ -47,7 +48,7 @@ def report_files(cal: Calibration, obs: Observations) -> dict[str, Any]:
     if yaml is not None:
         files["opencv.yaml"] = yaml
     row = {"method": cal.method, **{k: v for k, v in cal.metrics.items() if _scalar(v)},
-           "seconds": cal.diagnostics.get("solver", {}).get("seconds")}
+           "n_params": fitted_parameter_count(cal.model), "seconds": cal.diagnostics.get("solver", {}).get("seconds")}
     files["comparison.json"] = {"rows": [row]}
     files["comparison.csv"] = to_csv([row])
     return files

@@ -142,6 +142,9 @@ def run(args) -> int:
     obs = observations_of(args)
     with StageProgress(args.quiet) as progress:
         cal = calibrate(obs, args.method, progress=progress, outlier_sigma=args.outlier_sigma, **settings)
+    from calib_core.report.tables import camera
+
+    cal.diagnostics["camera"] = camera(cal, obs)  # parameters ± σ, field of view, verdict: as the page shows them
     with outputs.writing():
         if cal_file is not None:
             cal_file.write(json_text(cal.to_json()))
@@ -200,6 +203,8 @@ def print_summary(cal) -> None:
         chosen = [cal.settings.get("intervals_used"), cal.settings.get("bandwidth_factor_used")]
         table(["grid", "bandwidth factor", "lambda_smooth", "validation [px^2]", "effective parameters", "chosen"],
               [_curve_row(c, chosen) for c in curve])
+    if "camera" in d:
+        print_camera(d["camera"])
     sv = d.get("solver", {})
     print(f"solver: {sv.get('status')} after {sv.get('iterations')} iterations ({sv.get('message')}), "
           f"{sv.get('seconds', 0):.2f} s")
@@ -210,6 +215,18 @@ def print_summary(cal) -> None:
     print(f"\ncentre rmse {m['rmse_center']:.4f} px, edge rmse {m['rmse_edge']:.4f} px")
     for dv in cal.dropped_views:
         print(f"dropped {dv['name']}: {dv['reason']}")
+
+
+def print_camera(cam: dict) -> None:
+    """The parameters ± one standard deviation, the field of view and the verdict."""
+    print(f"model: {cam['model']}, {cam['chosen']}")
+    table(["parameter", "value", "± one standard deviation", "unit", "note"],
+          [(p["name"], f"{p['value']:.6g}", "—" if p["std"] is None else f"{p['std']:.2g}", p["unit"], p.get("note", ""))
+           for p in cam["parameters"]])
+    fov = cam["field_of_view_deg"]
+    print("field of view: " + ", ".join(f"{k} {'beyond the lens' if v is None else f'{v:.1f} deg'}"
+                                        for k, v in fov.items()))
+    print(f"verdict: {cam['verdict']['text']}")
 
 
 def print_choice(choice: dict) -> None:

@@ -30,8 +30,11 @@ def write_comparison(out: Path, result: dict[str, Any], obs: Observations,
 
 
 def summary(cal: Calibration) -> dict[str, Any]:
+    """What a job list shows of a done job: its numbers, and the model and verdict in words."""
+    camera = cal.diagnostics.get("camera") or {}
     return json_safe({"method": cal.method, "metrics": cal.metrics, "n_views": len(cal.views),
-                      "dropped_views": len(cal.dropped_views)})
+                      "dropped_views": len(cal.dropped_views), "model": camera.get("model"),
+                      "grade": (camera.get("verdict") or {}).get("grade")})
 
 
 def compare_summary(result: dict[str, Any]) -> dict[str, Any]:

@@ -34,6 +34,7 @@ from ..observations import Observations
 from ..pipeline import MIN_VIEWS, calibrate
 from . import quality
 from .evaluate import validation_residuals
+from .parameters import fitted_parameter_count
 
 DEFAULT_METHODS = ("zhang", "rational", "fisheye", "mls", "tps", "bspline")
 # The verdict's order of simplicity: parametric models by their number of
@@ -150,7 +151,7 @@ def compare(observations: Observations, methods: list[str] | None = None, splits
             entry.update({key: cal.metrics[key] for key in ("rmse", "rmse_axis", "rmse_center", "rmse_edge", "n_points")})
             entry["views"] = [{"name": v.name, "rmse": v.rmse, "rmse_axis": v.rmse_axis, "n_points": v.n_points}
                               for v in cal.views]
-            entry["n_params"] = int(cal.model.n_params)
+            entry["n_params"] = fitted_parameter_count(cal.model)  # what the fit moved, not what the model could
             entry["quality"] = _quality(quality.geometric_quality, cal, observations)  # paper Table 7
             if holdout is not None:
                 r, data, _ = validation_residuals(cal, holdout)

@@ -107,9 +107,30 @@ def view_errors(views: list[dict[str, Any]]) -> bytes:
 
 
 def distortion_field(field: dict[str, Any]) -> bytes:
+    """The map the lens reads on (``distortion.py``'s ``default``): for a wide
+    lens its angles off axis against the equidistant lens (colour, with θ's
+    contours), otherwise the offsets in pixels as arrows."""
     plt = _pyplot()
-    fig, ax = _image_axes(plt, field["image_size"], "Distortion: observed pixel − ideal pinhole pixel")
-    a = np.array([[np.nan if x is None else x for x in field[k]] for k in ("u", "v", "dx", "dy")], float)
+    maps = field.get("maps") or {"pinhole": {"label": "against the pinhole", "unit": "px", "dx": field["dx"],
+                                             "dy": field["dy"]}}
+    key = field.get("default", "pinhole")
+    m = maps[key]
+    nu, nv = field["grid"]
+    u, v = (np.array([np.nan if x is None else x for x in field[k]], float) for k in ("u", "v"))
+    if key == "angle":
+        fig, ax = _image_axes(plt, field["image_size"], "Lens: angle off axis − the equidistant lens's [°]")
+        d, theta = (np.array([np.nan if x is None else x for x in m[k]], float).reshape(nv, nu) for k in ("dtheta", "theta"))
+        scale = float(m.get("scale") or np.nanmax(np.abs(d)) or 1.0)
+        w, h = field["image_size"]
+        im = ax.imshow(np.ma.masked_invalid(d), extent=(0, w, h, 0), cmap="RdBu_r", vmin=-scale, vmax=scale,
+                       interpolation="bilinear")
+        lines = ax.contour(u.reshape(nv, nu), v.reshape(nv, nu), np.ma.masked_invalid(theta),
+                           levels=np.arange(15, 181, 15), colors="0.2", linewidths=0.6)
+        ax.clabel(lines, fmt="%d°", fontsize=7)
+        fig.colorbar(im, ax=ax, label="θ − r/f [°]", shrink=0.8)
+        return _png(plt, fig)
+    fig, ax = _image_axes(plt, field["image_size"], f"Distortion, {m['label']} [px]")
+    a = np.array([[np.nan if x is None else x for x in arr] for arr in (field["u"], field["v"], m["dx"], m["dy"])], float)
     ok = np.all(np.isfinite(a), axis=0)
     u, v, dx, dy = a[:, ok]
     size = np.hypot(dx, dy)

@@ -102,22 +102,28 @@ def _summary(cal: dict[str, Any]) -> str:
 
 
 def _parameters(doc: dict[str, Any] | None) -> str:
+    """The ``diagnostics.camera`` block (``evaluation.parameters``) as the page shows it."""
     if doc is None:
         return ""
-    have_std = doc.get("sigma") is not None
-    rows = [(r["name"], _num(r["value"], 6), "held" if r["held"] else (f"± {_num(r['std'], 4)}" if have_std else "—"),
-             _e(r["units"])) for r in doc["rows"]]
+    rows = [(r["name"], _num(r["value"], 6),
+             f"± {_num(r['std'], 4)}" if r["std"] is not None else _e(r.get("note", "—")), _e(r["unit"]))
+            for r in doc["parameters"]]
     f = doc.get("field")
-    if f:
-        spread = ("held" if f["held"] else f"median ± {_num(f['std_median'])}, max ± {_num(f['std_max'])}"
-                  if have_std and f["std_median"] is not None else "—")
-        rows.append((f"field ({f['n_values']} control values)", "—", spread, _e(f["units"])))
-    note = (f"{doc['note']}; σ = {_num(doc['sigma'])} px, {_num(doc['dof'], 1)} effective parameters."
-            if have_std else "No standard deviations: they need the corners the calibration was fitted to "
-                             "(freecal report CAL.json OBS.json).")
+    if f and "knot_intervals" in f:
+        rows.append((f"{f['type']} field over {f['over']}", f"{f['knot_intervals'][0]} × {f['knot_intervals'][1]} "
+                     f"knot intervals", f"largest offset {_num(f['largest_offset_px'])}", "px"))
+    fov = doc.get("field_of_view_deg") or {}
+    seen = ", ".join(f"{k} {_num(v, 1)}°" for k, v in fov.items() if v is not None)
+    note = (f"σ = {_num(doc['sigma_px'])} px per axis (from the residuals), {_num(doc['effective_parameters'], 1)} "
+            f"effective parameters; ± is the spread if the corners were measured again with that noise."
+            if doc.get("sigma_px") is not None else doc.get("uncertainty_error", ""))
+    verdict = doc.get("verdict", {}).get("text", "")
     return ("<section id='parameters'><h2>Parameters</h2>"
+            + f"<p>{_e(doc['model'])}, {_e(doc['chosen'])}.</p>"
             + _table("parameters-table", "fitted parameters ± one standard deviation",
                      ["parameter", "value", "± standard deviation", "units"], rows)
+            + (f"<p>Field of view: {_e(seen)}.</p>" if seen else "")
+            + (f"<p><strong>{_e(verdict)}</strong></p>" if verdict else "")
             + f"<p class='muted'>{_e(note)}</p></section>")
 
 

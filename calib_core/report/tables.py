@@ -16,17 +16,21 @@ import numpy as np
 
 from ..calibration import Calibration, json_safe
 from ..errors import DataError
+from ..evaluation.parameters import fitted_parameter_count
 from ..exports import opencv_yaml
 from ..observations import Observations
+from .distortion import distortion_maps
 
 HEATMAP_CELLS = (16, 12)   # columns, rows over the image
-FIELD_SAMPLES = (17, 13)   # distortion field sample grid (u, v)
+FIELD_SAMPLES = (33, 25)   # distortion field sample grid (u, v)
 UNCERTAINTY_STEP = 32.0    # px between the uncertainty map's samples
 
 
 def report_files(cal: Calibration, obs: Observations) -> dict[str, Any]:
     """File name → content (str for text, anything else as JSON) of every
     product of one calibration."""
+    if "camera" not in cal.diagnostics:  # the parameters' table the page leads with, in the calibration itself
+        cal.diagnostics["camera"] = camera(cal, obs)
     corners = corner_residuals(cal, obs)
     files = calibration_files(cal, view_residuals(cal, corners))
     files["corner_residuals.json"] = corners
@@ -50,7 +54,7 @@ def calibration_files(cal: Calibration, views: list[dict[str, Any]]) -> dict[str
     if yaml is not None:
         files["opencv.yaml"] = yaml
     row = {"method": cal.method, **{k: v for k, v in cal.metrics.items() if _scalar(v)},
-           "seconds": cal.diagnostics.get("solver", {}).get("seconds")}
+           "n_params": fitted_parameter_count(cal.model), "seconds": cal.diagnostics.get("solver", {}).get("seconds")}
     files["comparison.json"] = {"rows": [row]}
     files["comparison.csv"] = to_csv([row])
     return files
@@ -61,17 +65,18 @@ def report_products(cal: Calibration, obs: Observations | None = None) -> dict[s
     ``report_files``, the products the service computes on request (knot cells, the
     uncertainty map), the parameters with their standard deviations and the coverage
     of the image. Without ``obs`` (the corners), only what the calibration alone gives."""
-    from ..evaluation.parameters import parameter_table
+    from ..evaluation.parameters import describe_without_corners
 
     if obs is None:
         products = calibration_files(cal, view_residuals(cal, []))
+        products["parameters.json"] = describe_without_corners(cal)
     else:
         obs = fitted_corners(cal, obs)
         products = report_files(cal, obs)
         products["knot_cells.json"] = knot_cells(cal, products["corner_residuals.json"])
         products["uncertainty.json"] = uncertainty_map(cal, obs)
         products["coverage.json"] = coverage_of(obs)
-    products["parameters.json"] = parameter_table(cal, obs)
+        products["parameters.json"] = cal.diagnostics["camera"]
     return {name: content for name, content in products.items() if content is not None}
 
 
@@ -149,15 +154,16 @@ def heatmap(corners: list[dict[str, Any]], image_size: tuple[int, int]) -> dict[
 
 
 def distortion_field(cal: Calibration) -> dict[str, Any]:
-    """Samples of observed pixel → its offset from the ideal pinhole pixel (observed − ideal)."""
-    w, h = cal.image_size
-    nu, nv = FIELD_SAMPLES
-    u, v = np.meshgrid(np.linspace(0, w - 1, nu), np.linspace(0, h - 1, nv))
-    uv = np.column_stack([u.ravel(), v.ravel()])
-    d = uv - cal.undistort_points(uv)
-    return {"grid": [nu, nv], "image_size": [w, h], "u": json_safe(uv[:, 0]), "v": json_safe(uv[:, 1]),
-            "dx": json_safe(d[:, 0]), "dy": json_safe(d[:, 1]),
-            "note": "observed pixel minus its ideal pinhole pixel; null where the ray is 90 degrees or more off axis"}
+    """The distortion maps over the image (``distortion.distortion_maps``: against
+    the pinhole, the field's own part, the lens as angles; ``default`` the one
+    that reads on this lens), with the pinhole map's Δx, Δy also at the top
+    level (observed − ideal pinhole pixel), as earlier readers take them."""
+    doc = distortion_maps(cal, FIELD_SAMPLES)
+    pinhole = doc["maps"]["pinhole"]
+    doc.update(dx=pinhole["dx"], dy=pinhole["dy"],
+               note="observed pixel minus its ideal pinhole pixel; null where the ray is 90 degrees or more off "
+                    "axis; 'maps' holds every view of the lens, 'default' the one that reads on it")
+    return doc
 
 
 def knot_grid(cal: Calibration) -> dict[str, Any] | None:
@@ -192,6 +198,17 @@ def knot_cells(cal: Calibration, corners: list[dict[str, Any]]) -> dict[str, Any
     counts, _, _ = np.histogram2d(pos[ok, 1], pos[ok, 0], bins=[bv, bu])
     return {"breaks_u": bu.tolist(), "breaks_v": bv.tolist(), "counts": counts.astype(int).tolist(),
             "positions": where, "corners": np.round(pos[ok], 2).tolist(), "type": grid["type"]}
+
+
+def camera(cal: Calibration, obs: Observations) -> dict[str, Any]:
+    """The calibration's ``diagnostics.camera``: the model in words, every
+    parameter ± one standard deviation, the field of view and the verdict
+    (``evaluation.parameters``), from the corners it was fitted to."""
+    from ..evaluation.parameters import describe_camera
+    from ..evaluation.uncertainty import inlier_data
+
+    data, poses = inlier_data(cal, obs)
+    return describe_camera(cal, data, poses)
 
 
 def uncertainty_map(cal: Calibration, obs: Observations, step: float = UNCERTAINTY_STEP) -> dict[str, Any]:

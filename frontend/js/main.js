@@ -3,17 +3,20 @@
 import { api } from "./api.js";
 import { initBoard } from "./board.js";
 import { clearError, showError } from "./errors.js";
+import { initHelp } from "./help.js";
 import { renderJob, renderJobs } from "./jobs.js";
 import { hideResults, renderResults } from "./results.js";
 import { renderSet, renderSets } from "./sets.js";
 import { initMethods } from "./settings.js";
 import { initUpload } from "./upload.js";
+import { NO_FILES } from "./words.js";
 
 const POLL_MS = 1000;
 const state = { setId: null, jobId: null, shownJob: null, pending: null, sets: [] };
 
 async function submit({ form, method, settings }) {
   clearError();
+  if (!form.getAll("files").length) { showError(new Error(NO_FILES)); return; }
   try {
     const set = await api.createSet(form);
     // the job is created once detection is done (the API refuses a set still detecting)
@@ -56,7 +59,7 @@ async function refresh() {
     const [sets, jobs] = await Promise.all([api.sets(), api.jobs()]);
     state.sets = sets.sets;
     renderSets(sets.sets, state.setId, selectSet);
-    renderJobs(jobs.jobs, state.jobId, selectJob);
+    renderJobs(jobs.jobs, state.jobId, selectJob, sets.sets);
     let set = null;
     if (state.setId) {
       set = await api.set(state.setId);
@@ -65,7 +68,7 @@ async function refresh() {
     }
     if (state.jobId) {
       const job = await api.job(state.jobId);
-      renderJob(job, cancel);
+      renderJob(job, cancel, state.sets);
       if (job.state === "done" && state.shownJob !== job.id) {
         state.shownJob = job.id;
         if (job.set_id && job.set_id !== state.setId) { state.setId = job.set_id; set = await api.set(job.set_id); renderSet(set); }
@@ -90,6 +93,7 @@ async function health() {
 
 async function init() {
   initBoard();
+  initHelp();
   initUpload(submit);
   try {
     initMethods(await api.methods());

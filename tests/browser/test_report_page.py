@@ -57,7 +57,7 @@ def test_the_report_opens_offline_with_every_table_and_figure(browser, tmp_path)
     by_name = {row.split("\t")[0]: row.split("\t") for row in params}
     assert {"fx", "fy", "cx", "cy", "skew"} <= set(by_name), params
     assert by_name["fx"][2].startswith("± ") and float(by_name["fx"][2][2:]) > 0
-    assert any(name.startswith("field (") for name in by_name), "the field's control values, summarised"
+    assert any(name.startswith("B-spline field over") for name in by_name), "the field, summarised"
     views = page.eval_on_selector_all("#views-table tbody tr", "rows => rows.length")
     assert views == len(cal.views)
     shown = page.eval_on_selector_all("figure", "fs => fs.map(f => f.id)")

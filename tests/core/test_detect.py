@@ -130,7 +130,7 @@ def test_cli_detect_writes_observations(images, tmp_path, capsys):
     assert cli(["detect", str(images / "a_good.png"), str(images / "e_good.png"), "--board", "chessboard:6x5:10mm",
                 "-o", str(out)]) == 0
     text = capsys.readouterr()
-    assert "2/2 images used, 60 corners" in text.out and "detecting [" in text.err
+    assert "2/2 images used, 60 corners" in text.out and "detecting: 2/2 images" in text.err
     doc = json.loads(out.read_text())
     assert doc["format"] == "freecal.observations/1" and len(doc["views"]) == 2
     assert cli(["detect", str(images), "--board", "chessboard:9:10mm"]) == 2

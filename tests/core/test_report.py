@@ -39,7 +39,8 @@ def test_the_report_holds_the_pages_products_and_their_figures(tmp_path):
     page = (folder / "report.html").read_text()  # the page freecal report writes, figures inside
     assert page.count("data:image/png;base64,") == 8 and "id='parameters-table'" in page
     params = json.loads((folder / "parameters.json").read_text())
-    assert [r["name"] for r in params["rows"]] == ["fx", "fy", "cx", "cy", "skew"] and params["field"]["n_values"] > 0
+    assert [r["name"] for r in params["parameters"]] == ["fx", "fy", "cx", "cy", "skew"]
+    assert params["field"]["knot_intervals"] == [6, 6] and params["parameters"][0]["std"] > 0
     assert json.loads((folder / "coverage.json").read_text())["n_points"] == s.train.n_points
 
 

@@ -20,6 +20,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..board import BoardSpec
+from . import corner_refine
+from .markers import Markers, why_none
+
 BORDER_BITS = 2   # Kalibr's tags have a two-bit black border (OpenCV's default is one)
 
 
@@ -30,3 +34,36 @@ def corner_ids(tag_ids: np.ndarray, tag_cols: int) -> np.ndarray:
     cols = 2 * tag_cols
     base = (tag_ids // tag_cols) * 2 * cols + (tag_ids % tag_cols) * 2     # the tag's lower-left point
     return base[:, None] + np.array([1, 0, cols, cols + 1])[None, :]
+
+
+REFINE_SHARE = 0.15   # refinement half-window over the tag's edge in px: inside the two-bit border (0.2)
+MAX_SHIFT = 1.5       # px the refinement may move OpenCV's tag corner (Kalibr allows 1.22)
+
+
+def detect(gray: np.ndarray, board: BoardSpec, markers: Markers | None = None):
+    """(ids (N,), pixels (N, 2), reason if none) of an AprilGrid in ``gray``.
+
+    OpenCV finds the tags (two-bit border); each tag's corners are polished
+    where the tag's black border meets its corner square (an X-junction):
+    cornerSubPix, then the saddle fit, with a window inside the border."""
+    found = markers or Markers(gray)
+    dictionary = str(board.dictionary)
+    corners, tags = found.of(dictionary, board.first_marker, board.n_markers, BORDER_BITS)
+    if len(tags) == 0:
+        return None, None, "board not found: " + why_none(gray, dictionary, BORDER_BITS, board.first_marker,
+                                                          board.n_markers, found)
+    once = np.flatnonzero(np.bincount(tags - board.first_marker)[tags - board.first_marker] == 1)
+    corners, tags = corners[once], tags[once]     # a tag id seen twice: a stray tag, neither is trusted
+    ids = corner_ids(tags - board.first_marker, board.cols).reshape(-1)
+    raw = corners.reshape(-1, 2).astype(np.float64)
+    edge = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).mean(axis=1)   # (T,) px
+    half = np.repeat(np.clip(np.rint(REFINE_SHARE * edge), 2, 10).astype(int), 4)
+    h, w = gray.shape[:2]
+    inside = np.all((raw >= half[:, None] + 1) & (raw <= np.array([w, h]) - 2 - half[:, None]), axis=1)
+    ids, raw, half = ids[inside], raw[inside], half[inside]
+    pts = corner_refine.refine(gray, raw, half)
+    pts, det = corner_refine.saddle_fit(corner_refine.smoothed(gray), pts, half)
+    keep = (det < 0) & (np.linalg.norm(pts - raw, axis=1) <= MAX_SHIFT)
+    if not keep.any():
+        return None, None, f"too few corners (0 of {len(raw)} tag corners confirmed)"
+    return ids[keep], pts[keep], ""

@@ -75,7 +75,8 @@ def camera_poses(n: int, rng: np.random.Generator, distance: tuple[float, float]
     return np.array(poses)
 
 
-def seen(kind: str, target: Target, pose: np.ndarray, margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def seen(kind: str, target: Target, pose: np.ndarray, margin: float = 0.0,
+         max_angle_deg: float = MAX_VIEW_ANGLE_DEG) -> tuple[np.ndarray, np.ndarray]:
     """Target ids (M,) of the corners a camera at ``pose`` sees through lens
     ``kind`` (printed side towards it, at most MAX_VIEW_ANGLE_DEG off the
     board's normal, inside the image by ``margin``) and their exact pixels (M, 2)."""
@@ -87,7 +88,7 @@ def seen(kind: str, target: Target, pose: np.ndarray, margin: float = 0.0) -> tu
     normals = np.stack([-Rotation.from_rotvec(b.pose[:3]).as_matrix()[:, 2] for b in target.boards if b.pose])
     out_cam = rot.apply(normals[board])                    # outward normals in the camera frame
     cos_view = np.einsum("nj,nj->n", -pc, out_cam) / np.linalg.norm(pc, axis=1)
-    ok = (cos_view > np.cos(np.radians(MAX_VIEW_ANGLE_DEG))) & (pc[:, 2] > 1e-6)
+    ok = (cos_view > np.cos(np.radians(max_angle_deg))) & (pc[:, 2] > 1e-6)
     uv = np.full((len(ids), 2), np.nan)
     uv[ok] = true_project(kind, pc[ok])
     w, h = IMAGE_SIZE

@@ -11,7 +11,7 @@ from calib_core import Observations, calibrate
 from calib_core.detection.detect import IMAGE_SUFFIXES
 from calib_core.errors import SettingsError
 
-from .detect import BOARD_HELP, detect_with_report
+from .detect import BOARD_HELP, TARGET_HELP, detect_with_report
 from .output import StageProgress, print_json, table
 
 
@@ -70,6 +70,7 @@ def register(sub) -> None:
     p.add_argument("observations", nargs="+", metavar="OBS.json | IMAGES",
                    help="freecal.observations/1 JSON file, or image files and/or folders (with --board)")
     p.add_argument("--board", help="detect this board in the images first; " + BOARD_HELP)
+    p.add_argument("--target", metavar="T.json", help="detect these boards in the images first: " + TARGET_HELP)
     p.add_argument("--workers", type=int, default=None, help="detection worker processes (default: all cores)")
     p.add_argument("--method", default="auto", metavar="METHOD",
                    help="calibration method: auto (the default: the candidate that best predicts views left out "
@@ -115,16 +116,18 @@ def _value(text: str):
 
 def observations_of(args) -> Observations:
     """The observations JSON, or (with --board) the corners detected in the images given."""
-    if args.board:
+    if args.board or args.target:
         # With --json, stdout carries the calibration alone: the detection report goes to stderr.
         with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
-            det = detect_with_report(args.observations, args.board, args.quiet or args.json, args.workers)
+            det = detect_with_report(args.observations, args.board, args.quiet or args.json, args.workers,
+                                     target_path=args.target)
             print()
         return det.observations
     first = Path(args.observations[0])
     if len(args.observations) != 1 or first.is_dir() or first.suffix.lower() in IMAGE_SUFFIXES:
         raise SettingsError("to calibrate from images, say which board they show: --board SPEC "
-                            "(e.g. chessboard:9x6:25mm); otherwise give one observations JSON file")
+                            "(e.g. chessboard:9x6:25mm) or --target T.json (several boards on one object); "
+                            "otherwise give one observations JSON file")
     return Observations.load(args.observations[0])
 
 

@@ -37,7 +37,11 @@ def corner_ids(tag_ids: np.ndarray, tag_cols: int) -> np.ndarray:
 
 
 REFINE_SHARE = 0.15   # refinement half-window over the tag's edge in px: inside the two-bit border (0.2)
-MAX_SHIFT = 1.5       # px the refinement may move OpenCV's tag corner (Kalibr allows 1.22)
+# How far the refinement may move OpenCV's tag corner: the black corner squares touch each tag
+# at its corners, so OpenCV's outline of the tag is cut there and its corners land up to a tenth
+# of the tag off (rendered: 2.7 px on 40 px tags); within 0.15 of the tag the X-junction is the
+# only one (the border is 0.2 of the tag wide, the corner square the spacing ratio of it).
+MAX_SHIFT_SHARE = 0.12
 
 
 def detect(gray: np.ndarray, board: BoardSpec, markers: Markers | None = None):
@@ -45,7 +49,8 @@ def detect(gray: np.ndarray, board: BoardSpec, markers: Markers | None = None):
 
     OpenCV finds the tags (two-bit border); each tag's corners are polished
     where the tag's black border meets its corner square (an X-junction):
-    cornerSubPix, then the saddle fit, with a window inside the border."""
+    cornerSubPix, then the saddle fit, with a window inside the border
+    (Kalibr itself refines with cornerSubPix, a 5 x 5 window)."""
     found = markers or Markers(gray)
     dictionary = str(board.dictionary)
     corners, tags = found.of(dictionary, board.first_marker, board.n_markers, BORDER_BITS)
@@ -63,7 +68,7 @@ def detect(gray: np.ndarray, board: BoardSpec, markers: Markers | None = None):
     ids, raw, half = ids[inside], raw[inside], half[inside]
     pts = corner_refine.refine(gray, raw, half)
     pts, det = corner_refine.saddle_fit(corner_refine.smoothed(gray), pts, half)
-    keep = (det < 0) & (np.linalg.norm(pts - raw, axis=1) <= MAX_SHIFT)
+    keep = (det < 0) & (np.linalg.norm(pts - raw, axis=1) <= 0.5 + MAX_SHIFT_SHARE * np.repeat(edge, 4)[inside])
     if not keep.any():
         return None, None, f"too few corners (0 of {len(raw)} tag corners confirmed)"
     return ids[keep], pts[keep], ""

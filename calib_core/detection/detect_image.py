@@ -124,10 +124,13 @@ def failure_reason(exc: Exception) -> str:
             "re-save it as PNG or JPEG and upload it again")
 
 
-def detect_gray(gray: np.ndarray, board: BoardSpec, model=None, markers: Markers | None = None) -> ImageResult:
+def detect_gray(gray: np.ndarray, board: BoardSpec, model=None, markers: Markers | None = None,
+                classic_first: bool = True) -> ImageResult:
     """Detect in a greyscale image (H, W) uint8; ``model``: as in ``detect_file``;
     ``markers``: the image's markers, shared with other boards of the same image
-    (they must have been found on this image, reduced as here)."""
+    (they must have been found on this image, reduced as here); ``classic_first``
+    false: chessboards skip OpenCV's classic detector (several boards in one image
+    hold it for seconds on the other boards' squares)."""
     # The sector-based detector draws from OpenCV's global RNG: reseed so a
     # result depends on the image alone, not on which images a worker saw before.
     cv2.setRNGSeed(0x5EED)
@@ -139,7 +142,7 @@ def detect_gray(gray: np.ndarray, board: BoardSpec, model=None, markers: Markers
         work = cv2.resize(gray, (round(w * scale), round(h * scale)), interpolation=cv2.INTER_AREA)
     markers = markers if markers is not None and markers.gray.shape == work.shape else Markers(work)
     if board.type == "chessboard":
-        ids, pts, sharp, why = _chessboard(work, board)
+        ids, pts, sharp, why = _chessboard(work, board, classic_first)
     elif board.type == "aprilgrid":
         ids, pts, why = aprilgrid.detect(work, board, markers)
         sharp = None
@@ -190,7 +193,7 @@ def detect_gray(gray: np.ndarray, board: BoardSpec, model=None, markers: Markers
     return base
 
 
-def _chessboard(gray: np.ndarray, board: BoardSpec):
+def _chessboard(gray: np.ndarray, board: BoardSpec, classic_first: bool = True):
     """(ids, points, edge width px, reason if none)."""
     cols, rows = board.cols, board.rows
     # The classic detector first: on whole boards it is ~100x faster than the sector-based
@@ -198,8 +201,8 @@ def _chessboard(gray: np.ndarray, board: BoardSpec):
     # exact corners: median 0.037 px either way). The sector-based one then takes the
     # boards it misses (blur, strong distortion), and grows partial boards.
     grid = None
-    ok, corners = cv2.findChessboardCorners(gray, (cols, rows), flags=CLASSIC_FLAGS)
-    if ok:
+    ok, corners = cv2.findChessboardCorners(gray, (cols, rows), flags=CLASSIC_FLAGS) if classic_first else (False, None)
+    if ok and corners is not None:
         corners = corners.reshape(-1, 2)
         half = _half_window(corners.reshape(rows, cols, 2))
         corners = cv2.cornerSubPix(gray, corners.astype(np.float32), (half, half), (-1, -1), SUBPIX)

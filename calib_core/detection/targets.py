@@ -37,7 +37,7 @@ class BoardHit:
     """One board of the target in one image: found (``ids``, ``points``: the
     board's own corner ids and pixels) or not (``reason``)."""
 
-    board: int | None      # index into target.boards; None: a chessboard whose face is not decided
+    board: int | None      # index into target.boards; None: one of several chessboards of a size
     label: str
     ids: np.ndarray | None = None
     points: np.ndarray | None = None
@@ -89,7 +89,7 @@ def _chessboards(gray: np.ndarray, target: Target) -> list[BoardHit]:
     for (cols, rows), members in sizes.items():
         spec = target.boards[members[0]].spec
         for n in range(len(members)):
-            res = detect_gray(gray, spec)
+            res = detect_gray(gray, spec, classic_first=False)
             if res.status != "used" or res.ids is None or res.points is None:
                 missing = members if len(members) == 1 else members[n:]
                 hits += [BoardHit(k, target.boards[k].name, reason=res.reason) for k in missing]
@@ -99,8 +99,10 @@ def _chessboards(gray: np.ndarray, target: Target) -> list[BoardHit]:
             if decided:
                 k = members[0]
                 hits.append(BoardHit(k, target.boards[k].name, res.ids, res.points, placed=target.boards[k].fixed))
-            else:
-                hits.append(BoardHit(None, f"chessboard {cols}x{rows} #{n + 1}", res.ids, res.points,
+            else:  # the one board of its size is still known by name; which of several is not
+                which: int | None = members[0] if len(members) == 1 else None
+                label = target.boards[members[0]].name if which is not None else f"chessboard {cols}x{rows} #{n + 1}"
+                hits.append(BoardHit(which, label, res.ids, res.points,
                                      reason=_undecided(len(members), len(res.ids), spec.n_corners, cols, rows)))
             _hide(gray, res.points)
     return hits
@@ -108,12 +110,12 @@ def _chessboards(gray: np.ndarray, target: Target) -> list[BoardHit]:
 
 def _undecided(same_size: int, found: int, total: int, cols: int, rows: int) -> str:
     if same_size > 1:
-        why = f"the target has {same_size} chessboards of this size"
+        why = f"the target has {same_size} chessboards of this size, and a chessboard does not say which it is"
     elif found < total:
-        why = f"only {found} of its {total} corners are seen"
+        why = f"only {found} of its {total} corners are seen, and a partial chessboard does not say which they are"
     else:
-        why = f"a {cols}x{rows} board looks the same turned round"
-    return f"kept as a view of its own: which face it is cannot be told ({why})"
+        why = f"a {cols}x{rows} chessboard looks the same turned round, so its place on the object cannot be told"
+    return f"kept as a view of its own: {why}"
 
 
 def _hide(gray: np.ndarray, points: np.ndarray) -> None:

@@ -105,7 +105,7 @@ def _board_hits(rays: np.ndarray, board_to_camera: np.ndarray, spec: BoardSpec):
     board coordinates (H, W, 2), and whether the printed side faces the ray (H, W)."""
     r = Rotation.from_rotvec(board_to_camera[:3]).as_matrix()
     t = board_to_camera[3:]
-    normal = r[:, 2]                       # the board's +z (behind the printed side) in the camera
+    normal = r[:, 2]                       # the board's +z in the camera
     denom = rays @ normal
     with np.errstate(divide="ignore", invalid="ignore"):
         depth = (normal @ t) / denom
@@ -115,7 +115,9 @@ def _board_hits(rays: np.ndarray, board_to_camera: np.ndarray, spec: BoardSpec):
     tex, texel, origin = texture(spec)
     lo, hi = origin, origin + np.array([tex.shape[1], tex.shape[0]]) * texel
     hit &= np.all((b >= lo) & (b < hi), axis=-1)
-    return np.where(hit, depth, np.inf), b, denom > 0
+    # OpenCV's boards face −z of their frame; Kalibr's AprilGrid (x right, y up the page) faces +z.
+    front = denom < 0 if spec.type == "aprilgrid" else denom > 0
+    return np.where(hit, depth, np.inf), b, front
 
 
 def _lookup(spec: BoardSpec, b: np.ndarray) -> np.ndarray:

@@ -83,3 +83,16 @@ def test_one_board_moved_off_z_0_calibrates_as_the_board_itself():
     a, b = calibrate(obs, "zhang"), calibrate(moved, "zhang")
     np.testing.assert_allclose(a.model.intrinsics, b.model.intrinsics, rtol=1e-6, atol=1e-6)
     assert b.metrics["rmse"] == pytest.approx(a.metrics["rmse"], rel=1e-6)
+
+
+def test_a_view_whose_corners_lie_on_one_line_is_dropped_saying_why():
+    """One row of a board cannot fix its pose (no homography, no PnP): such a view
+    once made every initial camera fail ("no focal length explains the board views")."""
+    obs = views_of(webcam_lens, (640, 480), 8, seed=1, sigma=0.2, distance=500, spread=0.3)
+    v = obs.views[0]
+    row = v.object_points[:, 1] == v.object_points[0, 1]
+    obs.views[0] = v.subset(row)
+    assert len(obs.views[0]) >= 6
+    cal = calibrate(obs, "zhang")
+    assert [d["name"] for d in cal.dropped_views] == [v.name]
+    assert "one line" in cal.dropped_views[0]["reason"]

@@ -139,9 +139,7 @@ def render_boards(kind: str, boards: list[tuple[BoardSpec, np.ndarray]], rng: np
                   blur: float = render.BLUR_SIGMA, noise: float = render.NOISE_SIGMA,
                   image_size: tuple[int, int] = IMAGE_SIZE) -> np.ndarray:
     """8-bit image (H, W) of boards, each (spec, pose board → camera)."""
-    xn, covered = render.pixel_rays(kind, image_size)
-    rays = np.concatenate([xn, np.ones(xn.shape[:2] + (1,))], axis=-1)
-    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+    rays, covered = render.unit_rays(kind, image_size)
     hits = [_board_hits(rays, pose, spec) for spec, pose in boards]
     depth = np.stack([h[0] for h in hits])                        # (B, H, W)
     nearest = np.argmin(depth, axis=0)

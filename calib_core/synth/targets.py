@@ -21,7 +21,7 @@ from scipy.spatial.transform import Rotation
 
 from ..observations import Observations, View
 from ..target import Target
-from .lenses import IMAGE_SIZE, true_project
+from .lenses import IMAGE_SIZE, in_view, true_project
 
 SIDE = 320.0                       # mm, the cube's edge
 SQUARES, SQUARE, MARKER = 7, 40.0, 30.0
@@ -137,7 +137,7 @@ def seen(kind: str, target: Target, pose: np.ndarray, margin: float = 0.0,
     normals = np.stack([-Rotation.from_rotvec(b.pose[:3]).as_matrix()[:, 2] for b in target.boards if b.pose])
     out_cam = rot.apply(normals[board])                    # outward normals in the camera frame
     cos_view = np.einsum("nj,nj->n", -pc, out_cam) / np.linalg.norm(pc, axis=1)
-    ok = (cos_view > np.cos(np.radians(max_angle_deg))) & (pc[:, 2] > 1e-6)
+    ok = (cos_view > np.cos(np.radians(max_angle_deg))) & in_view(kind, pc)
     uv = np.full((len(ids), 2), np.nan)
     uv[ok] = true_project(kind, pc[ok])
     w, h = IMAGE_SIZE

@@ -148,3 +148,18 @@ def test_tags_of_another_dictionary_and_mirrored_boards_are_named_as_such():
     assert mirrored.status == "rejected" and "mirrored" in mirrored.reason
     other_ids = detect_gray(img, BoardSpec.from_json({**right.to_json(), "first_marker": 100}))
     assert "ids 100-139" in other_ids.reason and "ids 0-39" in other_ids.reason
+
+
+def test_the_example_in_the_formats_page_is_a_valid_target():
+    import json
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "formats.md").read_text()
+    block = re.search(r'```json\n(\{\n  "format": "freecal.target/1".*?)```', text, re.S)
+    assert block is not None
+    t = Target.from_json(json.loads(block.group(1)))
+    corner = targets.corner()
+    assert [b.fixed for b in t.boards] == [True, True, False]
+    for ours, theirs in zip(t.boards[:2], corner.boards[:2], strict=True):   # the poses are the rendered target's
+        np.testing.assert_allclose(ours.pose, theirs.pose, atol=1e-4)

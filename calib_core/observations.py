@@ -135,10 +135,15 @@ def read_json(path: str | Path) -> Any:
         raise FormatError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise FormatError(f"{path}: cannot be read as UTF-8 text ({exc})") from None
+    return parse_json(text, str(path))
+
+
+def parse_json(text: str, source: str) -> Any:
+    """JSON text from ``source`` (a file name, "standard input"), a FormatError naming it if it is not JSON."""
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
-        raise FormatError(f"{path}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
+        raise FormatError(f"{source}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
 
 
 def write_json(path: str | Path, doc: Any) -> None:

@@ -3,8 +3,6 @@ freecal calibrate IMAGES_OR_DIR... --board SPEC ... (detects first, then calibra
 from __future__ import annotations
 
 import argparse
-import contextlib
-import sys
 from pathlib import Path
 
 from calib_core import Observations, calibrate
@@ -12,7 +10,10 @@ from calib_core.detection.detect import IMAGE_SUFFIXES
 from calib_core.errors import SettingsError
 
 from .detect import BOARD_HELP, TARGET_HELP, detect_with_report
-from .output import StageProgress, print_json, table
+from .inputs import STDIN, load_observations
+from .output import claim_stdout, json_text, print_json, table
+from .outputs import OutputFolder, Outputs
+from .progress import StageProgress
 
 
 def _pair(text: str) -> tuple[int, int]:
@@ -67,16 +68,19 @@ def register(sub) -> None:
     p = sub.add_parser("calibrate", help="calibrate from observations (corners) JSON, or from images",
                        description="Calibrate a camera from freecal.observations/1 corners, or from photos "
                                    "(with --board: detect the board first, then calibrate).")
-    p.add_argument("observations", nargs="+", metavar="OBS.json | IMAGES",
-                   help="freecal.observations/1 JSON file, or image files and/or folders (with --board)")
+    p.add_argument("observations", nargs="+", metavar="OBS.json | - | IMAGES",
+                   help="freecal.observations/1 JSON file (- : standard input), or image files and/or folders "
+                        "(with --board)")
     p.add_argument("--board", help="detect this board in the images first; " + BOARD_HELP)
     p.add_argument("--target", metavar="T.json", help="detect these boards in the images first: " + TARGET_HELP)
     p.add_argument("--workers", type=int, default=None, help="detection worker processes (default: all cores)")
     p.add_argument("--method", default="auto", metavar="METHOD",
                    help="calibration method: auto (the default: the candidate that best predicts views left out "
                         "of its fit), bspline (the paper's field; settings below), zhang, rational, fisheye, mls, tps")
-    p.add_argument("-o", "--output", help="write the freecal.calibration/1 JSON here")
-    p.add_argument("--json", action="store_true", help="print the calibration JSON instead of a summary")
+    p.add_argument("-o", "--output", metavar="CAL.json", help="write the freecal.calibration/1 JSON here (- : standard output)")
+    p.add_argument("--json", action="store_true",
+                   help="print the calibration JSON on standard output instead of the summary (which goes to "
+                        "standard error)")
     p.add_argument("--report", metavar="DIR",
                    help="write the report the results page shows into DIR: residual tables (JSON, CSV), heatmap, "
                         "distortion field, knot grid, projection uncertainty, and their figures (PNG)")
@@ -117,59 +121,62 @@ def _value(text: str):
 def observations_of(args) -> Observations:
     """The observations JSON, or (with --board) the corners detected in the images given."""
     if args.board or args.target:
-        # With --json, stdout carries the calibration alone: the detection report goes to stderr.
-        with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
-            det = detect_with_report(args.observations, args.board, args.quiet or args.json, args.workers,
-                                     target_path=args.target)
-            print()
+        det = detect_with_report(args.observations, args.board, args.quiet, args.workers, target_path=args.target)
+        print()
         return det.observations
+    if args.observations == [STDIN]:
+        return load_observations(STDIN)
     first = Path(args.observations[0])
     if len(args.observations) != 1 or first.is_dir() or first.suffix.lower() in IMAGE_SUFFIXES:
         raise SettingsError("to calibrate from images, say which board they show: --board SPEC "
                             "(e.g. chessboard:9x6:25mm) or --target T.json (several boards on one object); "
                             "otherwise give one observations JSON file")
-    return Observations.load(args.observations[0])
+    return load_observations(args.observations[0])
 
 
 def run(args) -> int:
+    outputs = Outputs()
+    cal_file = outputs.file(args.output, "-o", "cal.json")
+    report = outputs.folder(args.report, "--report")
+    settings = settings_of(args)
+    if args.json:
+        claim_stdout("--json")
     obs = observations_of(args)
-    cal = calibrate(obs, args.method, progress=StageProgress(args.quiet or args.json),
-                    outlier_sigma=args.outlier_sigma, **settings_of(args))
-    if args.output:
-        cal.save(args.output)
-    written = write_report(Path(args.report), cal, obs) if args.report else []
+    with StageProgress(args.quiet) as progress:
+        cal = calibrate(obs, args.method, progress=progress, outlier_sigma=args.outlier_sigma, **settings)
+    with outputs.writing():
+        if cal_file is not None:
+            cal_file.write(json_text(cal.to_json()))
+        written = write_report(report, cal, obs) if report is not None else []
     if args.json:
         print_json(cal.to_json())
-    else:
-        print_summary(cal)
-        if args.output:
-            print(f"\nwrote {args.output}")
-        if written:
-            print(f"wrote the report into {args.report}: {', '.join(written)}")
+        return 0
+    print_summary(cal)
+    if cal_file is not None and not cal_file.to_stdout:
+        print(f"\nwrote {cal_file}")
+    if written:
+        print(f"wrote the report into {report}: {', '.join(written)}")
     return 0
 
 
-def write_report(folder: Path, cal, obs: Observations) -> list[str]:
-    """The results page's products and their figures, as files in ``folder``."""
+def write_report(folder: OutputFolder, cal, obs: Observations) -> list[str]:
+    """The results page's products, their figures and the page itself (report.html, as
+    ``freecal report`` writes it) as files in ``folder`` (inside ``Outputs.writing``:
+    they land with the other outputs, or not at all)."""
     import json
 
     from calib_core.calibration import json_safe
-    from calib_core.report import figures, tables
+    from calib_core.report import tables
 
-    products = tables.report_files(cal, obs)
-    products["knot_cells.json"] = tables.knot_cells(cal, products["corner_residuals.json"])
-    products["uncertainty.json"] = tables.uncertainty_map(cal, obs)
-    files = {name: content for name, content in products.items() if content is not None}
-    folder.mkdir(parents=True, exist_ok=True)
-    for name, content in files.items():
-        if isinstance(content, str):
-            (folder / name).write_text(content)
-        else:
-            (folder / name).write_text(json.dumps(json_safe(content), indent=1 if name == "calibration.json" else None))
-    for name, png in figures.report_figures(products).items():
-        (folder / name).write_bytes(png)
-        files[name] = png
-    return sorted(files)
+    from .report import write_report_page
+
+    products = tables.report_products(cal, obs)
+    for name, content in products.items():
+        text = content if isinstance(content, str) else json.dumps(
+            json_safe(content), indent=1 if name == "calibration.json" else None)
+        folder.file(name).write(text)
+    figures = write_report_page(folder.file("report.html"), folder, cal, obs, "calibration", products)
+    return sorted([*products, *figures, "report.html"])
 
 
 def print_summary(cal) -> None:

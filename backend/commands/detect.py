@@ -1,15 +1,15 @@
-"""freecal detect IMAGES_OR_DIR... --board SPEC -o OBS.json"""
+"""freecal detect IMAGES_OR_DIR... --board SPEC -o OBS.json | --json"""
 from __future__ import annotations
-
-import sys
-import time
 
 from calib_core.board import BoardSpec
 from calib_core.detection.detect import Detection, detect_images
 from calib_core.errors import DataError, SettingsError
 from calib_core.target import Target
 
-from .output import table
+from .inputs import load_calibration
+from .output import claim_stdout, json_text, table, write_data
+from .outputs import Outputs
+from .progress import CountProgress
 
 BOARD_HELP = ("board spec: chessboard:COLSxROWS:SQUARE (inner corners, e.g. chessboard:9x6:25mm), "
               "charuco:SXxSY:SQUARE:MARKER:DICT[:legacy] (e.g. charuco:5x7:40mm:20mm:DICT_6X6_250) or "
@@ -25,29 +25,17 @@ def register(sub) -> None:
     p.add_argument("images", nargs="+", help="image files and/or folders of images")
     p.add_argument("--board", help=BOARD_HELP)
     p.add_argument("--target", metavar="T.json", help=TARGET_HELP + " (instead of --board)")
-    p.add_argument("-o", "--output", help="write the freecal.observations/1 JSON here")
+    p.add_argument("-o", "--output", metavar="OBS.json",
+                   help="write the freecal.observations/1 JSON here (- : standard output)")
+    p.add_argument("--json", action="store_true",
+                   help="print only the observations JSON on standard output (the per-image table goes to "
+                        "standard error), e.g. to pipe into freecal calibrate -")
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: all cores)")
     p.add_argument("--refine-with", metavar="CAL.json",
-                   help="a first freecal.calibration/1 of this camera: predict every board corner through it "
-                        "and keep those confirmed in the image (chessboards)")
+                   help="a first freecal.calibration/1 of this camera (- : standard input): predict every board "
+                        "corner through it and keep those confirmed in the image (chessboards)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
-
-
-class ProgressBar:
-    """progress(done, total) → one redrawn line on stderr."""
-
-    def __init__(self, quiet: bool = False, width: int = 30):
-        self.quiet, self.width, self.t0 = quiet, width, time.perf_counter()
-
-    def __call__(self, done: int, total: int) -> None:
-        if self.quiet:
-            return
-        filled = int(self.width * done / max(total, 1))
-        rate = done / max(time.perf_counter() - self.t0, 1e-9)
-        end = "\n" if done >= total else ""
-        print(f"\rdetecting [{'#' * filled}{'.' * (self.width - filled)}] {done}/{total} images "
-              f"({rate:.1f}/s)", end=end, file=sys.stderr, flush=True)
 
 
 def board_of(board_spec: str | None, target_path: str | None = None) -> BoardSpec | Target:
@@ -64,7 +52,8 @@ def detect_with_report(images, board_spec: str | None, quiet: bool = False, work
     board = board_of(board_spec, target_path)
     if isinstance(board, Target) and calibration is not None:
         raise SettingsError("--refine-with works with --board (one board), not with --target")
-    det = detect_images(images, board, progress=ProgressBar(quiet), workers=workers, calibration=calibration)
+    with CountProgress(quiet) as progress:
+        det = detect_images(images, board, progress=progress, workers=workers, calibration=calibration)
     print_report(det)
     if det.observations is None:
         raise DataError(det.warnings[0] if det.warnings else "no image was usable")
@@ -89,20 +78,26 @@ def print_report(det: Detection) -> None:
 
 
 def _boards(boards: list[dict]) -> str:
-    """'+x 36, -z 20; chessboard 9x6 #1 54 (own view)': the boards an image shows."""
+    """'+x 36, -z 20, chessboard 9x6 #1 54 (own view)': the boards an image shows."""
     found = [f"{b['name']} {b['n_corners']}" + ("" if b["placed"] else " (own view)") for b in boards if b["n_corners"]]
     return ", ".join(found) or "none"
 
 
 def run(args) -> int:
-    cal = None
-    if args.refine_with:
-        from calib_core.calibration import Calibration
-
-        cal = Calibration.load(args.refine_with)
+    outputs = Outputs()
+    target = outputs.file(args.output, "-o", "obs.json")
+    if args.json:
+        claim_stdout("--json")
+    cal = load_calibration(args.refine_with) if args.refine_with else None
     det = detect_with_report(args.images, args.board, args.quiet, args.workers, cal, args.target)
-    if args.output:
-        det.observations.extra["coverage"] = det.coverage
-        det.observations.save(args.output)
-        print(f"wrote {args.output}")
+    det.observations.extra["coverage"] = det.coverage
+    text = json_text(det.observations.to_json())
+    with outputs.writing():
+        if target is not None:
+            target.write(text)
+    if args.json:
+        write_data(text.encode("utf-8"))
+    elif target is not None and not target.to_stdout:
+        print(f"wrote {target}")
     return 0
+

@@ -11,6 +11,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import multiprocessing as mp
 import os
+import time
 from collections import Counter
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
@@ -76,6 +77,13 @@ def image_paths(items: Iterable[str | Path]) -> list[Path]:
     return out
 
 
+# A pool's workers come from a fresh interpreter that imports OpenCV and the
+# detector (0.7 s of CPU on these machines) before the first image: a set this
+# process would detect faster alone than that start (26 VGA images: 0.45 s here,
+# 0.9-1.4 s through a pool of 2 that had to start first) is detected here.
+POOL_PAYS_AFTER = 1.5  # seconds of detection left after the first image
+
+
 def detect_images(paths, board: BoardSpec | Target, progress: Callable[[int, int], None] | None = None,
                   workers: int | None = None, calibration=None) -> Detection:
     """Detect ``board`` in every image of ``paths`` (files or folders).
@@ -120,34 +128,40 @@ def _unique_names(files: list[Path]) -> list[str]:
 
 
 def _run_all(files, names, board, progress, workers, model=None) -> list[ImageResult]:
+    """Every image's result, in order: on a pool of ``workers`` processes when
+    the set is large enough to pay for starting one (see POOL_PAYS_AFTER)."""
     total = len(files)
     n = workers if workers is not None else (os.cpu_count() or 1)
     n = max(1, min(n, total))
     results: list[ImageResult | None] = [None] * total
     done = 0
-    if n > 1:
+
+    def finished(k: int, result: ImageResult) -> None:
+        nonlocal done
+        results[k] = result
+        done += 1
+        if progress:
+            progress(done, total)
+
+    start = time.perf_counter()
+    fn, *job = _job(files[0], board, names[0], model)
+    finished(0, fn(*job))
+    alone = (time.perf_counter() - start) * (total - 1)  # the rest, detected here
+    if n > 1 and alone > POOL_PAYS_AFTER:
         try:
             with cf.ProcessPoolExecutor(n, mp_context=_context(), initializer=_init_worker) as pool:
-                futures = {pool.submit(*_job(f, board, nm, model)): k
-                           for k, (f, nm) in enumerate(zip(files, names, strict=True))}
+                futures = {pool.submit(*_job(files[k], board, names[k], model)): k for k in range(1, total)}
                 for fut in cf.as_completed(futures):
-                    k = futures[fut]
                     try:
-                        results[k] = fut.result()
+                        finished(futures[fut], fut.result())
                     except Exception:  # a dead worker: this image is retried in-process below
                         continue
-                    done += 1
-                    if progress:
-                        progress(done, total)
         except (OSError, PermissionError, NotImplementedError, cf.process.BrokenProcessPool, RuntimeError):
             pass  # no pool here (sandbox, no /dev/shm...): fall back to this process
-    for k, (f, nm) in enumerate(zip(files, names, strict=True)):
+    for k in range(total):
         if results[k] is None:
-            fn, *job = _job(f, board, nm, model)
-            results[k] = fn(*job)
-            done += 1
-            if progress:
-                progress(done, total)
+            fn, *job = _job(files[k], board, names[k], model)
+            finished(k, fn(*job))
     return results  # type: ignore[return-value]
 
 

@@ -79,6 +79,19 @@ def _embed(cov: np.ndarray, free: np.ndarray | None, n_params: int, n_extra: int
     return out
 
 
+def inlier_data(cal, obs) -> tuple[Data, np.ndarray]:
+    """The corners a calibration was fitted to (its views, outliers dropped) and its
+    poses (V, 6), in the solver's form: what its covariance is computed from."""
+    from ..pipeline import to_data
+
+    data, names, local = to_data(obs.select([v.name for v in cal.views]))
+    outliers = {(n, i) for n in names for i in cal.view(n).outliers}
+    if outliers:
+        keep = np.array([(names[k], int(i)) not in outliers for k, i in zip(data.view_index, local, strict=True)])
+        data = data.points(keep)
+    return data, np.array([cal.view(n).pose for n in names])
+
+
 def model_covariance(model: CameraModel, poses: np.ndarray, data: Data, sigma: float | None = None):
     """Cov(x̂_m) (n_m, n_m) of the model parameters, poses marginalised; with σ and the dof."""
     free = model.free_mask()  # the parameters the fit moved, as the solver asks for them

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..calibration import Calibration, json_safe
+from ..errors import DataError
 from ..exports import opencv_yaml
 from ..observations import Observations
 
@@ -27,14 +28,19 @@ def report_files(cal: Calibration, obs: Observations) -> dict[str, Any]:
     """File name → content (str for text, anything else as JSON) of every
     product of one calibration."""
     corners = corner_residuals(cal, obs)
-    views = view_residuals(cal, corners)
+    files = calibration_files(cal, view_residuals(cal, corners))
+    files["corner_residuals.json"] = corners
+    files["corner_residuals.csv"] = to_csv(corners)
+    files["heatmap.json"] = heatmap(corners, cal.image_size)
+    return files
+
+
+def calibration_files(cal: Calibration, views: list[dict[str, Any]]) -> dict[str, Any]:
+    """The products the calibration alone gives (``views``: its per-view rows)."""
     files: dict[str, Any] = {
         "calibration.json": cal.to_json(),
-        "corner_residuals.json": corners,
-        "corner_residuals.csv": to_csv(corners),
         "view_residuals.json": views,
         "view_residuals.csv": to_csv(views),
-        "heatmap.json": heatmap(corners, cal.image_size),
         "distortion_field.json": distortion_field(cal),
     }
     knots = knot_grid(cal)
@@ -48,6 +54,46 @@ def report_files(cal: Calibration, obs: Observations) -> dict[str, Any]:
     files["comparison.json"] = {"rows": [row]}
     files["comparison.csv"] = to_csv([row])
     return files
+
+
+def report_products(cal: Calibration, obs: Observations | None = None) -> dict[str, Any]:
+    """Everything the report shows (``freecal calibrate --report``, ``freecal report``):
+    ``report_files``, the products the service computes on request (knot cells, the
+    uncertainty map), the parameters with their standard deviations and the coverage
+    of the image. Without ``obs`` (the corners), only what the calibration alone gives."""
+    from ..evaluation.parameters import parameter_table
+
+    if obs is None:
+        products = calibration_files(cal, view_residuals(cal, []))
+    else:
+        obs = fitted_corners(cal, obs)
+        products = report_files(cal, obs)
+        products["knot_cells.json"] = knot_cells(cal, products["corner_residuals.json"])
+        products["uncertainty.json"] = uncertainty_map(cal, obs)
+        products["coverage.json"] = coverage_of(obs)
+    products["parameters.json"] = parameter_table(cal, obs)
+    return {name: content for name, content in products.items() if content is not None}
+
+
+def fitted_corners(cal: Calibration, obs: Observations) -> Observations:
+    """The views of ``obs`` the calibration was fitted to; a DataError if ``obs`` is not where it came from."""
+    if tuple(obs.image_size) != tuple(cal.image_size):
+        raise DataError(f"the observations are of a {obs.image_size[0]} x {obs.image_size[1]} image, the calibration "
+                        f"of a {cal.image_size[0]} x {cal.image_size[1]} one: give the observations it was fitted to")
+    have = {v.name for v in obs.views}
+    missing = [v.name for v in cal.views if v.name not in have]
+    if missing:
+        raise DataError(f"the observations lack {len(missing)} of the calibration's {len(cal.views)} views "
+                        f"(e.g. {missing[0]!r}): give the observations it was fitted to")
+    return obs.select([v.name for v in cal.views])
+
+
+def coverage_of(obs: Observations) -> dict[str, Any]:
+    """Where the corners fall in the image (``evaluation.coverage``), with the image size."""
+    from ..evaluation.coverage import coverage
+
+    points = np.concatenate([v.image_points for v in obs.views]) if obs.views else np.zeros((0, 2))
+    return {**coverage(points, obs.image_size), "image_size": list(obs.image_size), "n_points": int(len(points))}
 
 
 def corner_residuals(cal: Calibration, obs: Observations) -> list[dict[str, Any]]:
@@ -152,15 +198,9 @@ def uncertainty_map(cal: Calibration, obs: Observations, step: float = UNCERTAIN
     """Projection uncertainty over a pixel grid (``evaluation.uncertainty``,
     boards frame), from the calibration's own views and inliers; σ is
     estimated from their residuals."""
-    from ..evaluation.uncertainty import projection_uncertainty
-    from ..pipeline import to_data
+    from ..evaluation.uncertainty import inlier_data, projection_uncertainty
 
-    data, names, local = to_data(obs.select([v.name for v in cal.views]))
-    outliers = {(n, i) for n in names for i in cal.view(n).outliers}
-    if outliers:
-        keep = np.array([(names[k], int(i)) not in outliers for k, i in zip(data.view_index, local, strict=True)])
-        data = data.points(keep)
-    poses = np.array([cal.view(n).pose for n in names])
+    data, poses = inlier_data(cal, obs)
     um = projection_uncertainty(cal.model, poses, data, cal.image_size, step=step)
     doc = um.to_json()
     doc.update(covered=um.covered.tolist(), image_size=list(cal.image_size), step=step,

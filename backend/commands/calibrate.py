@@ -9,7 +9,7 @@ from calib_core import Observations, calibrate
 from calib_core.detection.detect import IMAGE_SUFFIXES
 from calib_core.errors import SettingsError
 
-from .detect import BOARD_HELP, detect_with_report
+from .detect import BOARD_HELP, TARGET_HELP, detect_with_report
 from .inputs import STDIN, load_observations
 from .output import claim_stdout, json_text, print_json, table
 from .outputs import OutputFolder, Outputs
@@ -72,6 +72,7 @@ def register(sub) -> None:
                    help="freecal.observations/1 JSON file (- : standard input), or image files and/or folders "
                         "(with --board)")
     p.add_argument("--board", help="detect this board in the images first; " + BOARD_HELP)
+    p.add_argument("--target", metavar="T.json", help="detect these boards in the images first: " + TARGET_HELP)
     p.add_argument("--workers", type=int, default=None, help="detection worker processes (default: all cores)")
     p.add_argument("--method", default="auto", metavar="METHOD",
                    help="calibration method: auto (the default: the candidate that best predicts views left out "
@@ -119,8 +120,8 @@ def _value(text: str):
 
 def observations_of(args) -> Observations:
     """The observations JSON, or (with --board) the corners detected in the images given."""
-    if args.board:
-        det = detect_with_report(args.observations, args.board, args.quiet, args.workers)
+    if args.board or args.target:
+        det = detect_with_report(args.observations, args.board, args.quiet, args.workers, target_path=args.target)
         print()
         return det.observations
     if args.observations == [STDIN]:
@@ -128,7 +129,8 @@ def observations_of(args) -> Observations:
     first = Path(args.observations[0])
     if len(args.observations) != 1 or first.is_dir() or first.suffix.lower() in IMAGE_SUFFIXES:
         raise SettingsError("to calibrate from images, say which board they show: --board SPEC "
-                            "(e.g. chessboard:9x6:25mm); otherwise give one observations JSON file")
+                            "(e.g. chessboard:9x6:25mm) or --target T.json (several boards on one object); "
+                            "otherwise give one observations JSON file")
     return load_observations(args.observations[0])
 
 

@@ -3,15 +3,19 @@ from __future__ import annotations
 
 from calib_core.board import BoardSpec
 from calib_core.detection.detect import Detection, detect_images
-from calib_core.errors import DataError
+from calib_core.errors import DataError, SettingsError
+from calib_core.target import Target
 
 from .inputs import load_calibration
 from .output import claim_stdout, json_text, table, write_data
 from .outputs import Outputs
 from .progress import CountProgress
 
-BOARD_HELP = ("board spec: chessboard:COLSxROWS:SQUARE (inner corners, e.g. chessboard:9x6:25mm) or "
-              "charuco:SXxSY:SQUARE:MARKER:DICT[:legacy] (e.g. charuco:5x7:40mm:20mm:DICT_6X6_250)")
+BOARD_HELP = ("board spec: chessboard:COLSxROWS:SQUARE (inner corners, e.g. chessboard:9x6:25mm), "
+              "charuco:SXxSY:SQUARE:MARKER:DICT[:legacy] (e.g. charuco:5x7:40mm:20mm:DICT_6X6_250) or "
+              "aprilgrid:TAGSXxTAGSY:TAG:SPACING (Kalibr's, e.g. aprilgrid:6x6:88mm:0.3)")
+TARGET_HELP = ("a freecal.target/1 JSON file (docs/formats.md §5): several boards, each with its pose on one "
+               "calibration object; each image then gives one view of the object with 3-D object points")
 
 
 def register(sub) -> None:
@@ -19,7 +23,8 @@ def register(sub) -> None:
                        description="Detect a chessboard or ChArUco board in images (all cores) and write "
                                    "freecal.observations/1 corners.")
     p.add_argument("images", nargs="+", help="image files and/or folders of images")
-    p.add_argument("--board", required=True, help=BOARD_HELP)
+    p.add_argument("--board", help=BOARD_HELP)
+    p.add_argument("--target", metavar="T.json", help=TARGET_HELP + " (instead of --board)")
     p.add_argument("-o", "--output", metavar="OBS.json",
                    help="write the freecal.observations/1 JSON here (- : standard output)")
     p.add_argument("--json", action="store_true",
@@ -33,10 +38,20 @@ def register(sub) -> None:
     p.set_defaults(run=run)
 
 
-def detect_with_report(images, board_spec: str, quiet: bool = False, workers: int | None = None,
-                       calibration=None) -> Detection:
+def board_of(board_spec: str | None, target_path: str | None = None) -> BoardSpec | Target:
+    """The board of --board SPEC, or the boards of --target T.json (exactly one of them)."""
+    if (board_spec is None) == (target_path is None):
+        raise SettingsError("say what the images show: --board SPEC (one board, e.g. chessboard:9x6:25mm) or "
+                            "--target T.json (several boards on one object), not both")
+    return BoardSpec.parse(board_spec) if board_spec is not None else Target.load(str(target_path))
+
+
+def detect_with_report(images, board_spec: str | None, quiet: bool = False, workers: int | None = None,
+                       calibration=None, target_path: str | None = None) -> Detection:
     """Detect, print the per-image table and warnings; DataError if no image was usable."""
-    board = BoardSpec.parse(board_spec)
+    board = board_of(board_spec, target_path)
+    if isinstance(board, Target) and calibration is not None:
+        raise SettingsError("--refine-with works with --board (one board), not with --target")
     with CountProgress(quiet) as progress:
         det = detect_images(images, board, progress=progress, workers=workers, calibration=calibration)
     print_report(det)
@@ -46,9 +61,13 @@ def detect_with_report(images, board_spec: str, quiet: bool = False, workers: in
 
 
 def print_report(det: Detection) -> None:
-    rows = [(r.name, r.status, r.n_corners, "—" if r.sharpness is None else f"{r.sharpness:.2f}", r.reason or "")
-            for r in det.reports]
-    table(["image", "status", "corners", "edge width [px]", "reason"], rows)
+    if any(r.boards is not None for r in det.reports):  # a target: which boards each image shows
+        rows = [(r.name, r.status, r.n_corners, _boards(r.boards or []), r.reason or "") for r in det.reports]
+        table(["image", "status", "corners", "boards (corners)", "reason"], rows)
+    else:
+        rows = [(r.name, r.status, r.n_corners, "—" if r.sharpness is None else f"{r.sharpness:.2f}", r.reason or "")
+                for r in det.reports]
+        table(["image", "status", "corners", "edge width [px]", "reason"], rows)
     used = sum(r.status == "used" for r in det.reports)
     n = sum(r.n_corners for r in det.reports if r.status == "used")
     print(f"\n{used}/{len(det.reports)} images used, {n} corners")
@@ -58,13 +77,19 @@ def print_report(det: Detection) -> None:
         print(f"warning: {w}")
 
 
+def _boards(boards: list[dict]) -> str:
+    """'+x 36, -z 20, chessboard 9x6 #1 54 (own view)': the boards an image shows."""
+    found = [f"{b['name']} {b['n_corners']}" + ("" if b["placed"] else " (own view)") for b in boards if b["n_corners"]]
+    return ", ".join(found) or "none"
+
+
 def run(args) -> int:
     outputs = Outputs()
     target = outputs.file(args.output, "-o", "obs.json")
     if args.json:
         claim_stdout("--json")
     cal = load_calibration(args.refine_with) if args.refine_with else None
-    det = detect_with_report(args.images, args.board, args.quiet, args.workers, cal)
+    det = detect_with_report(args.images, args.board, args.quiet, args.workers, cal, args.target)
     det.observations.extra["coverage"] = det.coverage
     text = json_text(det.observations.to_json())
     with outputs.writing():

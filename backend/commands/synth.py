@@ -1,4 +1,4 @@
-"""freecal synth --kind radial|fisheye|asymmetric|freeform|decentred --sigma 0.3 --seed 0 [--images] -o DIR"""
+"""freecal synth --kind radial|fisheye|asymmetric|freeform|decentred|fisheye200 --sigma 0.3 --seed 0 [--images] -o DIR"""
 from __future__ import annotations
 
 import sys
@@ -18,7 +18,8 @@ def register(sub) -> None:
                        description="Write DIR/train.json (noisy), DIR/holdout.json (noise-free, whole image) "
                                    "and DIR/truth.json; with --images also photo-like PNGs of the training "
                                    "views (DIR/images/) and their exact corners (DIR/images_truth.json).")
-    p.add_argument("--kind", choices=synth.KINDS, default="radial")
+    p.add_argument("--kind", choices=synth.ALL_KINDS, default="radial",
+                   help="the synthetic lens (fisheye200: a circular fisheye of 200 degrees)")
     p.add_argument("--sigma", type=float, default=0.3, help="corner noise per axis, pixels")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--views", type=int, default=10, help="training views")

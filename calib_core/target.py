@@ -1,4 +1,4 @@
-"""Calibration objects of several boards: ``freecal.target/1`` (docs/formats.md §5, freecal's own).
+"""Calibration objects of several boards: ``freecal.target/1`` (docs/targets.md, freecal's own).
 
 A target lists boards (each a ``board`` object of ``freecal.observations/1``:
 chessboard, ChArUco with its dictionary and first marker, AprilGrid) and,
@@ -118,7 +118,7 @@ class Target:
             raise FormatError("target: expected a JSON object at the top level")
         if doc.get("format") != FORMAT:
             raise FormatError(f"format: expected {FORMAT!r}, got {doc.get('format')!r}; this file is not a freecal "
-                              "target (docs/formats.md §5)")
+                              "target (docs/targets.md)")
         units = doc.get("units", "mm")
         if not isinstance(units, str) or units not in ("mm", "cm", "m"):
             raise FormatError(f"units: expected \"mm\", \"cm\" or \"m\", got {units!r}")

@@ -14,7 +14,7 @@ from .progress import CountProgress
 BOARD_HELP = ("board spec: chessboard:COLSxROWS:SQUARE (inner corners, e.g. chessboard:9x6:25mm), "
               "charuco:SXxSY:SQUARE:MARKER:DICT[:legacy] (e.g. charuco:5x7:40mm:20mm:DICT_6X6_250) or "
               "aprilgrid:TAGSXxTAGSY:TAG:SPACING (Kalibr's, e.g. aprilgrid:6x6:88mm:0.3)")
-TARGET_HELP = ("a freecal.target/1 JSON file (docs/formats.md §5): several boards, each with its pose on one "
+TARGET_HELP = ("a freecal.target/1 JSON file (docs/targets.md): several boards, each with its pose on one "
                "calibration object; each image then gives one view of the object with 3-D object points")
 
 

@@ -150,12 +150,12 @@ def test_tags_of_another_dictionary_and_mirrored_boards_are_named_as_such():
     assert "ids 100-139" in other_ids.reason and "ids 0-39" in other_ids.reason
 
 
-def test_the_example_in_the_formats_page_is_a_valid_target():
+def test_the_example_in_the_targets_page_is_a_valid_target():
     import json
     import re
     from pathlib import Path
 
-    text = (Path(__file__).resolve().parents[2] / "docs" / "formats.md").read_text()
+    text = (Path(__file__).resolve().parents[2] / "docs" / "targets.md").read_text()
     block = re.search(r'```json\n(\{\n  "format": "freecal.target/1".*?)```', text, re.S)
     assert block is not None
     t = Target.from_json(json.loads(block.group(1)))

@@ -64,5 +64,6 @@ def test_a_terminal_gets_a_bar_with_the_time_left(corners, tmp_path):
     text = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", screen.decode("utf-8", "replace"))
     assert "━" in text, "a drawn bar"
     assert re.search(r"\d+%\s+\d:\d\d:\d\d left \d:\d\d:\d\d", text), text[-500:]  # elapsed, then the time left
-    assert "Kannala-Brandt model: levenberg-marquardt" in text
+    # which stages get drawn depends on the bar's refresh (10 per second) against the stages' length:
+    # the candidates' names are asserted on the plain lines above, where every stage prints
     assert not re.search(r"^\[\s*[\d.]+ s\]", text, re.M), "no plain lines on a terminal"

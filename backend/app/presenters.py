@@ -6,6 +6,7 @@ from datetime import UTC, datetime
 from typing import Any
 
 from ..base.context import Context
+from ..base.repository.jobs import split_settings
 from .schemas import ImagePublic, JobPublic, SetPublic, Timings
 from .services import sets as set_service
 
@@ -41,8 +42,9 @@ def job_public(row: dict[str, Any]) -> JobPublic:
         downloads = {"observations.json": f"/api/sets/{row['set_id']}/observations.json"}
     else:
         downloads = {name: f"/api/jobs/{row['id']}/{name}" for name in row["artefacts"]}
+    settings, exclude = split_settings(row["settings"])
     return JobPublic(
-        id=row["id"], kind=row["kind"], set_id=row["set_id"], method=row["method"], settings=row["settings"],
+        id=row["id"], kind=row["kind"], set_id=row["set_id"], method=row["method"], settings=settings, exclude=exclude,
         state=row["state"], stage=row["stage"], progress=row["progress"], error=row["error"],
         attempts=row["attempts"], cancel_requested=row["cancel_requested"], worker=row["worker"],
         created_at=_dt(row["created_at"]), started_at=_dt(start), finished_at=_dt(end), timings=timings,

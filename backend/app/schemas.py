@@ -64,6 +64,8 @@ class JobCreate(BaseModel):
                         "predicts views left out of its fit), or 'compare' for all methods")
     settings: dict[str, Any] = Field(default_factory=dict, description="the method's settings, e.g. "
                                      "{\"knots\": \"uniform\", \"intervals\": [8, 8], \"lambda_smooth\": 0.1}")
+    exclude: list[str] = Field(default_factory=list, description="names of the set's views to leave out of this "
+                               "calibration (curation: re-run without them, no new upload)")
 
     @model_validator(mode="after")
     def one_input(self) -> JobCreate:
@@ -85,6 +87,7 @@ class JobPublic(BaseModel):
     set_id: str | None
     method: str | None
     settings: dict[str, Any]
+    exclude: list[str] = Field(default_factory=list, description="the views left out of this calibration")
     state: JobState
     stage: str | None = Field(description="detect, initialise, knots, control points, joint optimisation, metrics ...")
     progress: float = Field(description="0-100 %")

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..calibration import Calibration, json_safe
+from ..evaluation.view_flags import view_flags
 from ..exports import opencv_yaml
 from ..observations import Observations
 
@@ -27,7 +28,7 @@ def report_files(cal: Calibration, obs: Observations) -> dict[str, Any]:
     """File name → content (str for text, anything else as JSON) of every
     product of one calibration."""
     corners = corner_residuals(cal, obs)
-    views = view_residuals(cal, corners)
+    views = with_flags(view_residuals(cal, corners), view_flags(cal, obs))
     files: dict[str, Any] = {
         "calibration.json": cal.to_json(),
         "corner_residuals.json": corners,
@@ -80,6 +81,19 @@ def view_residuals(cal: Calibration, corners: list[dict[str, Any]]) -> list[dict
             worst[c["view"]] = max(worst.get(c["view"], 0.0), c["error"])
     return [{"view": v.name, "n_points": v.n_points, "rmse": json_safe(v.rmse), "rmse_axis": json_safe(v.rmse_axis),
              "max_error": worst.get(v.name), "outliers": len(v.outliers)} for v in cal.views]
+
+
+def with_flags(views: list[dict[str, Any]], flags: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The per-view rows with their curation figures (``evaluation.view_flags``): corners detected and kept,
+    the flags in words, and ``flagged`` (their codes, for the CSV)."""
+    by_name = {f["view"]: f for f in flags}
+    keys = ("n_detected", "n_kept", "outlier_share", "rmse_z", "structure", "structure_rms", "structure_z", "flags")
+    out = []
+    for row in views:
+        f = by_name.get(row["view"], {})
+        extra = {k: json_safe(f.get(k)) if k != "flags" else f.get(k, []) for k in keys}
+        out.append({**row, **extra, "flagged": " ".join(x["code"] for x in extra["flags"])})
+    return out
 
 
 def _inliers(corners: list[dict[str, Any]]) -> np.ndarray:

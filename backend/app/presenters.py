@@ -25,6 +25,7 @@ def set_public(ctx: Context, row: dict[str, Any], with_images: bool) -> SetPubli
         n_views=row["n_views"], coverage=row["coverage"], warnings=row["warnings"],
         created_at=_dt(row["created_at"]), detection_job=job_id,
         images=[ImagePublic(**im) for im in images] if with_images and images is not None else None,
+        **(set_service.curation(ctx, row) if with_images else {}),
     )
 
 

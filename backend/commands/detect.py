@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import sys
 import time
+from pathlib import Path
 
 from calib_core.board import BoardSpec
 from calib_core.detection.detect import Detection, detect_images
@@ -51,9 +52,25 @@ def detect_with_report(images, board_spec: str, quiet: bool = False, workers: in
     board = BoardSpec.parse(board_spec)
     det = detect_images(images, board, progress=ProgressBar(quiet), workers=workers, calibration=calibration)
     print_report(det)
+    size = board_size_advice(det, board, images, workers)
     if det.observations is None:
-        raise DataError(det.warnings[0] if det.warnings else "no image was usable")
+        raise DataError((det.warnings[0] if det.warnings else "no image was usable") + (f"; {size}" if size else ""))
+    if size:
+        print(f"warning: {size}")
     return det
+
+
+def board_size_advice(det: Detection, board: BoardSpec, images, workers: int | None) -> str | None:
+    """The board's size the photos show when it is not --board's, as a --board to try (None when they agree)."""
+    from calib_core.detection.board_size import suggest_size
+    from calib_core.detection.detect import image_paths
+
+    views = det.observations.views if det.observations is not None else []
+    paths = image_paths([images] if isinstance(images, (str, Path)) else images)
+    found = suggest_size(board, views, len(det.reports), paths, workers)
+    if found is None:
+        return None
+    return f"{found.message(board)}; try --board {found.board(board).to_spec()}"
 
 
 def print_report(det: Detection) -> None:

@@ -194,13 +194,23 @@ def _view(result: ImageResult, board: BoardSpec) -> View:
     return View(result.name, board.object_points(result.ids), result.points, result.ids)
 
 
+def none_found(board: BoardSpec, n_images: int) -> str:
+    """Why a detection found nothing, in words that fit the page and the command line alike."""
+    if board.type == "chessboard":
+        what = f"the chessboard of {board.cols} × {board.rows} inner corners"
+        hint = "check the board's size (inner corners, where four squares meet, not squares) and the photos' focus"
+    else:
+        what = f"the ChArUco board of {board.cols} × {board.rows} squares ({board.dictionary})"
+        hint = "check the board's size (squares), its marker dictionary and the photos' focus"
+    return f"{what} was found in none of the {n_images} photos: {hint}"
+
+
 def _assemble(results: list[ImageResult], board: BoardSpec) -> Detection:
     reports = [ImageReport(r.name, r.status, r.n_corners, r.reason, r.sharpness, r.width, r.height) for r in results]
     used = [r for r in results if r.status == "used"]
     warnings: list[str] = []
     if not used:
-        warnings.append(f"the board ({board.to_spec()}) was found in none of the {len(results)} images; "
-                        "check the board spec (inner corners for a chessboard) and the images")
+        warnings.append(none_found(board, len(results)))
         return Detection(None, reports, {}, warnings)
     size = _image_size(used[0])
     views = [_view(r, board) for r in used]

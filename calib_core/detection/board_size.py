@@ -12,8 +12,9 @@ outvote it).
 ``suggest_size`` judges a detection: a size given too large shows in the corners already
 found (no view reaches the size given, and most views are complete grids of one smaller
 size); a size given too small (or another board) makes most photos fail, and the photos
-are then probed with ``visible_grid``. Cheap: the first costs nothing, a probe about 0.3 s
-a photo (GoPro, 1000 × 750).
+are then probed with ``visible_grid``; or the detector finds the smaller grid inside the
+board, which a probe of a few photos shows (a larger complete grid in most of them). Cheap:
+the first costs nothing, a probe about 0.3 s a photo (GoPro, 1000 × 750).
 """
 from __future__ import annotations
 
@@ -34,6 +35,7 @@ MIN_SHARE = 0.4          # of the views or photos that must show the suggested g
 MIN_PHOTOS = 2
 COMPLETE = 0.9           # share of a grid's positions found for it to count as the whole board
 MAX_PROBES = 40          # photos probed at most (spread over the set): enough to find the mode
+SAMPLE = 4               # photos probed when the board was found: is it larger than the size given?
 
 
 @dataclass(frozen=True)
@@ -100,12 +102,24 @@ def suggest_size(board: BoardSpec, views: Sequence[View], n_images: int, paths: 
     if board.type != "chessboard":
         return None
     if len(views) * 2 >= n_images:
-        return _too_large(board, views)
+        found = _too_large(board, views)
+        if found is not None or not paths:
+            return found
+        # a size given too small is found too, as a part of the board: a few photos tell
+        sample = _probe_all(_spread(paths, SAMPLE), workers)
+        larger = [g for g in sample if g is not None and g[0] * g[1] > board.cols * board.rows]
+        if len(larger) * 2 <= len(sample):
+            return None
     if not paths:
         return None
-    step = max(1, len(paths) // MAX_PROBES)
-    grids = _probe_all(list(paths)[::step][:MAX_PROBES], workers)
+    grids = _probe_all(_spread(paths, MAX_PROBES), workers)
     return _mode(board, [g for g in grids if g is not None], len(grids))
+
+
+def _spread(paths: Sequence[Path], n: int) -> list[Path]:
+    """At most ``n`` of the photos, spread over the set."""
+    step = max(1, -(-len(paths) // n))
+    return list(paths)[::step][:n]
 
 
 def _too_large(board: BoardSpec, views: Sequence[View]) -> SizeSuggestion | None:

@@ -123,7 +123,8 @@ def _reason(error: ApiError) -> str:
     """An image's refusal as a reason beside its name (the name is shown already)."""
     text = error.detail
     quote = text.find("' ")
-    return text[quote + 2:] if text.startswith("'") and quote > 0 else text
+    text = text[quote + 2:] if text.startswith("'") and quote > 0 else text
+    return text[3:] if text.startswith("is ") else text   # "empty (0 bytes): ...", beside the name
 
 
 def _with_corners_vnl(vnl: Upload, photos: list[Upload], corners: list[Upload], skipped: list[dict[str, str]],

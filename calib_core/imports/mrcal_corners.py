@@ -36,12 +36,16 @@ def read_corners_vnl(text: str, board: BoardSpec, image_size: tuple[int, int],
         raise FormatError(f"{what} holds no corners (only comments or nothing): is it mrcal's corners.vnl?")
     header = next((h for h in stripped if re.match(r"#\s*filename\s+x\s+y\b", h)), "")
     weights = header.split()[-1] == "weight" if header else False
-    tokens = " ".join(data).split()
-    ncols = len(data[0].split())
-    if ncols not in (3, 4) or len(tokens) != ncols * len(data):
+    parts = np.char.split(data)
+    widths = np.fromiter(map(len, parts), int, len(parts))
+    if np.any((widths < 3) | (widths > 4)):
+        bad = data[np.flatnonzero((widths < 3) | (widths > 4))[0]]
         raise FormatError(f"{what}: every row must be 'filename x y' or 'filename x y level' (mrcal's corners "
-                          "file); the rows here have different numbers of columns")
-    table = np.array(tokens, dtype=object).reshape(len(data), ncols).astype(str)
+                          f"file); this one is not: {str(bad)[:80]!r}")
+    # a row without the fourth column counts as seen at full resolution (weight 1), as mrcal reads it
+    pad = "1" if weights else "0"
+    padded = np.char.add(data, np.where(widths == 3, f" {pad}", ""))
+    table = np.array(" ".join(padded).split(), dtype=str).reshape(len(data), 4)
     names = table[:, 0]
     # rows of one image are consecutive: a new image starts where the name changes
     starts = np.flatnonzero(np.r_[True, names[1:] != names[:-1]])
@@ -52,9 +56,8 @@ def read_corners_vnl(text: str, board: BoardSpec, image_size: tuple[int, int],
     per_board = cols * rows
     xy = _numbers(table[:, 1:3])
     ok = np.all(np.isfinite(xy), axis=1) & np.all(xy >= 0, axis=1)
-    if ncols == 4:
-        level = _numbers(table[:, 3:4])[:, 0]
-        ok &= (level > 0) if weights else (level >= 0)
+    level = _numbers(table[:, 3:4])[:, 0]
+    ok &= (level > 0) if weights else (level >= 0)
     views, skipped = [], []
     for start, count in zip(starts, counts, strict=True):   # per image, not per point
         name = str(names[start])

@@ -155,6 +155,7 @@ def run(args) -> int:
         print_json(cal.to_json())
         return 0
     print_summary(cal)
+    print_flags(cal, obs)
     if cal_file is not None and not cal_file.to_stdout:
         print(f"\nwrote {cal_file}")
     if written:
@@ -253,3 +254,15 @@ def _curve_row(c: dict, chosen: list) -> tuple:
         return grid, shown, "—", "—", "—", f"skipped ({c['skipped']})"
     return (grid, shown, c["lambda_smooth"], c["cv"], f"{c['dof']:.0f}",
             "*" if [c["intervals"], factor] == chosen else "")
+
+
+def print_flags(cal, obs: Observations) -> None:
+    """The views that look suspicious (``calib_core.evaluation.view_flags``), with why; silent when none do."""
+    from calib_core.evaluation.view_flags import view_flags
+
+    flagged = [r for r in view_flags(cal, obs) if r["flags"]]
+    if not flagged:
+        return
+    print(f"\n{len(flagged)} view(s) look suspicious:")
+    for r in flagged:
+        print(f"  {r['view']}: " + "; ".join(f["text"] for f in r["flags"]))

@@ -1,6 +1,8 @@
 """freecal detect IMAGES_OR_DIR... --board SPEC -o OBS.json | --json"""
 from __future__ import annotations
 
+from pathlib import Path
+
 from calib_core.board import BoardSpec
 from calib_core.detection.detect import Detection, detect_images
 from calib_core.errors import DataError, SettingsError
@@ -55,9 +57,25 @@ def detect_with_report(images, board_spec: str | None, quiet: bool = False, work
     with CountProgress(quiet) as progress:
         det = detect_images(images, board, progress=progress, workers=workers, calibration=calibration)
     print_report(det)
+    size = board_size_advice(det, board, images, workers)
     if det.observations is None:
-        raise DataError(det.warnings[0] if det.warnings else "no image was usable")
+        raise DataError((det.warnings[0] if det.warnings else "no image was usable") + (f"; {size}" if size else ""))
+    if size:
+        print(f"warning: {size}")
     return det
+
+
+def board_size_advice(det: Detection, board: BoardSpec, images, workers: int | None) -> str | None:
+    """The board's size the photos show when it is not --board's, as a --board to try (None when they agree)."""
+    from calib_core.detection.board_size import suggest_size
+    from calib_core.detection.detect import image_paths
+
+    views = det.observations.views if det.observations is not None else []
+    paths = image_paths([images] if isinstance(images, (str, Path)) else images)
+    found = suggest_size(board, views, len(det.reports), paths, workers)
+    if found is None:
+        return None
+    return f"{found.message(board)}; try --board {found.board(board).to_spec()}"
 
 
 def print_report(det: Detection) -> None:

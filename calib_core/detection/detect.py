@@ -235,6 +235,20 @@ def _views(result: ImageResult, board: BoardSpec | Target) -> list[View]:
     return views
 
 
+def none_found(board: BoardSpec, n_images: int) -> str:
+    """Why a detection found nothing, in words that fit the page and the command line alike."""
+    if board.type == "chessboard":
+        what = f"the chessboard of {board.cols} × {board.rows} inner corners"
+        hint = "check the board's size (inner corners, where four squares meet, not squares) and the photos' focus"
+    elif board.type == "charuco":
+        what = f"the ChArUco board of {board.cols} × {board.rows} squares ({board.dictionary})"
+        hint = "check the board's size (squares), its marker dictionary and the photos' focus"
+    else:
+        what = f"the board ({board.to_spec()})"
+        hint = "check the board's spec and the photos' focus"
+    return f"{what} was found in none of the {n_images} photos: {hint}"
+
+
 def _size_spec(target: Target, label: str) -> BoardSpec:
     """The spec of the chessboards of an undecided hit's size ("chessboard 9x6 #2")."""
     size = label.split()[1]
@@ -251,10 +265,9 @@ def _assemble(results: list[ImageResult], board: BoardSpec | Target) -> Detectio
     used = [r for r in results if r.status == "used"]
     warnings: list[str] = []
     if not used:
-        what = (f"the board ({board.to_spec()}) was found in none" if isinstance(board, BoardSpec) else
-                f"no board of the target ({board.describe()}) was found in any")
-        warnings.append(f"{what} of the {len(results)} images; "
-                        "check the board spec (inner corners for a chessboard) and the images")
+        warnings.append(none_found(board, len(results)) if isinstance(board, BoardSpec) else
+                        f"no board of the target ({board.describe()}) was found in any of the {len(results)} photos: "
+                        "check the target file and the photos' focus")
         return Detection(None, reports, {}, warnings)
     size = _image_size(used[0])
     views = [v for r in used for v in _views(r, board)]

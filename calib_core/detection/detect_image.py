@@ -217,8 +217,8 @@ def _chessboard(gray: np.ndarray, board: BoardSpec, classic_first: bool = True):
         return None, None, None, "board not found"
     placed = place_grid(grid.astype(np.float64), cols, rows, gray)
     if placed is None:
-        return None, None, None, (f"board not found: the grid found ({grid.shape[1]}x{grid.shape[0]} corners) "
-                                  f"is larger than the board ({cols}x{rows}); check --board")
+        return None, None, None, (f"board not found: the corner grid seen ({grid.shape[1]} × {grid.shape[0]}) "
+                                  f"does not fit a {cols} × {rows} board; is the board's size right (inner corners)?")
     sharp = _edge_width(gray, grid)
     return placed[0], placed[1], sharp, ""
 

@@ -17,6 +17,7 @@ import numpy as np
 from ..calibration import Calibration, json_safe
 from ..errors import DataError
 from ..evaluation.parameters import fitted_parameter_count
+from ..evaluation.view_flags import view_flags
 from ..exports import opencv_yaml
 from ..observations import Observations
 from .distortion import distortion_maps
@@ -32,7 +33,7 @@ def report_files(cal: Calibration, obs: Observations) -> dict[str, Any]:
     if "camera" not in cal.diagnostics:  # the parameters' table the page leads with, in the calibration itself
         cal.diagnostics["camera"] = camera(cal, obs)
     corners = corner_residuals(cal, obs)
-    files = calibration_files(cal, view_residuals(cal, corners))
+    files = calibration_files(cal, with_flags(view_residuals(cal, corners), view_flags(cal, obs)))
     files["corner_residuals.json"] = corners
     files["corner_residuals.csv"] = to_csv(corners)
     files["heatmap.json"] = heatmap(corners, cal.image_size)
@@ -131,6 +132,19 @@ def view_residuals(cal: Calibration, corners: list[dict[str, Any]]) -> list[dict
             worst[c["view"]] = max(worst.get(c["view"], 0.0), c["error"])
     return [{"view": v.name, "n_points": v.n_points, "rmse": json_safe(v.rmse), "rmse_axis": json_safe(v.rmse_axis),
              "max_error": worst.get(v.name), "outliers": len(v.outliers)} for v in cal.views]
+
+
+def with_flags(views: list[dict[str, Any]], flags: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The per-view rows with their curation figures (``evaluation.view_flags``): corners detected and kept,
+    the flags in words, and ``flagged`` (their codes, for the CSV)."""
+    by_name = {f["view"]: f for f in flags}
+    keys = ("n_detected", "n_kept", "outlier_share", "rmse_z", "structure", "structure_rms", "structure_z", "flags")
+    out = []
+    for row in views:
+        f = by_name.get(row["view"], {})
+        extra = {k: json_safe(f.get(k)) if k != "flags" else f.get(k, []) for k in keys}
+        out.append({**row, **extra, "flagged": " ".join(x["code"] for x in extra["flags"])})
+    return out
 
 
 def _inliers(corners: list[dict[str, Any]]) -> np.ndarray:

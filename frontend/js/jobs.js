@@ -29,7 +29,8 @@ export function renderJob(job, onCancel, sets = []) {
     const eta = etaText(remaining(job.id, job.progress, t.run_seconds));
     text += ` · stage: ${job.stage} · ${job.progress.toFixed(0)} % · ${seconds(t.run_seconds)}` + (eta ? ` · ${eta}` : "");
   }
-  else if (job.state === "queued") text += " · waiting for a worker";
+  else if (job.state === "queued") text += job.stage === "waiting for detection"
+    ? " · waiting for the set's corner detection to end (it starts by itself)" : " · waiting for a worker";
   else if (job.state === "done") text += ` · ${seconds(t.run_seconds)}`;
   if (job.error) text += ` · ${job.error}`;
   document.getElementById("job-progress-label").textContent = text;

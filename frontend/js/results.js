@@ -8,7 +8,9 @@ import { knotsFigure } from "./plots/knots.js";
 import { rectifiedFigure } from "./plots/rectified.js";
 import { uncertaintyFigure } from "./plots/uncertainty.js";
 import { vectorsFigure } from "./plots/vectors.js";
-import { modelChoiceTable, overallTable, qualityTable, restartNote, smoothingTable, viewsTable } from "./tables.js";
+import { curationTable } from "./curation.js";
+import { renderSetJobs } from "./setjobs.js";
+import { modelChoiceTable, overallTable, qualityTable, restartNote, smoothingTable } from "./tables.js";
 import { cameraCard } from "./verdict.js";
 import { renderViewer } from "./viewer.js";
 
@@ -37,9 +39,10 @@ export async function renderResults(job, set) {
   const metrics = document.getElementById("metrics");
   const who = job.method === "compare" ? ` (${job.summary.verdict})` : "";
   const camera = calibration && (calibration.diagnostics || {}).camera;
-  metrics.replaceChildren(calibration ? cameraCard(calibration) : "", overallTable(comparison), views.length ? viewsTable(views, `Per view${who}`) : "",
+  metrics.replaceChildren(calibration ? cameraCard(calibration) : "", overallTable(comparison), views.length ? curationTable(views, job, `Per view${who}`) : "",
     calibration ? restartNote(calibration) : "", calibration ? modelChoiceTable(calibration) : "",
     calibration ? smoothingTable(calibration) : "");
+  renderSetJobs(job).catch(() => {});   // the set's other calibrations side by side (a note, never an error)
   const imageSize = heatmap ? heatmap.image_size : set && set.image_size;
   const figs = [];
   if (heatmap) figs.push(heatmapFigure({ heatmap, corners, views }));

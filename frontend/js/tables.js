@@ -31,16 +31,6 @@ export function overallTable(doc) {
   return el("div", { class: "table-wrap" }, table, note);
 }
 
-export function viewsTable(views, title) {
-  const table = el("table", { id: "metrics-views" },
-    el("caption", {}, title),
-    el("thead", {}, el("tr", {}, ["view", "points", "rmse [px]", "rmse per axis [px]", "max error [px]", "outliers"]
-      .map((h) => el("th", { scope: "col" }, h)))),
-    el("tbody", {}, views.map((v) => el("tr", {}, el("th", { scope: "row" }, v.view), el("td", {}, num(v.n_points)),
-      el("td", {}, px(v.rmse)), el("td", {}, px(v.rmse_axis)), el("td", {}, px(v.max_error)), el("td", {}, num(v.outliers))))));
-  return el("div", { class: "table-wrap scroll-y" }, table);
-}
-
 /** The default method's model choice (method "auto"): each candidate's error on views left out of its fit,
  * ± one standard error, and the rule that decided. */
 export function modelChoiceTable(calibration) {

@@ -83,7 +83,7 @@ def test_wrong_board_spec_is_explained(tmp_path):
     cv2.imwrite(str(tmp_path / "y.png"), np.full((360, 400), 90, np.uint8))
     det = detect_images([tmp_path / "y.png"], BoardSpec.parse("chessboard:4x3:10mm"), workers=1)
     assert det.observations is None
-    assert "board (chessboard:4x3:10mm) was found in none of the 1 images" in det.warnings[0]
+    assert "chessboard of 4 × 3 inner corners was found in none of the 1 photos" in det.warnings[0]
     # A board smaller than the spec is a partial view of it: kept, as ids of the 9x6 board.
     det = detect_images([tmp_path / "x.png"], BoardSpec.parse("chessboard:9x6:10mm"), workers=1)
     assert det.reports[0].status == "used" and det.reports[0].n_corners == 30

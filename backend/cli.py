@@ -1,7 +1,8 @@
 """The ``freecal`` command: one sub-command per module in ``backend/commands``.
 
-Errors a user can cause (``CalibError``) print one line saying what to do and
-exit with status 2; never a traceback.
+Errors a user can cause (``CalibError``: bad input, bad settings, an output path
+that cannot be written) print one line saying what to do and exit with status 2;
+never a traceback.
 """
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ import sys
 from calib_core.errors import CalibError
 
 from .commands import COMMANDS
+from .commands.output import stdout_session
+from .version import version
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -19,6 +22,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="freecal",
         description="Camera calibration for lenses that defy the textbook models.",
     )
+    parser.add_argument("--version", action="version", version=f"freecal {version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in COMMANDS:
         module.register(sub)
@@ -28,7 +32,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        return int(args.run(args) or 0)
+        with stdout_session():
+            return int(args.run(args) or 0)
     except CalibError as exc:
         print(f"freecal {args.command}: error: {exc}", file=sys.stderr)
         return 2

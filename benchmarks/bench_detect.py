@@ -1,6 +1,7 @@
 """Board detection: speed and corner accuracy, freecal against plain OpenCV.
 
-python -m benchmarks detect [--sets NAME,...] [--rendered KIND] [--views N] [--workers N]
+python -m benchmarks detect [--sets NAME,...] [--rendered KIND,...] [--views N] [--workers N]
+                            [--target-views N] [--target-kind KIND]
 
 - speed, per real set of ../shared/data: images per second of freecal's
   ``detect_images`` (all cores, partial boards, checks) against the plain loop
@@ -13,6 +14,10 @@ python -m benchmarks detect [--sets NAME,...] [--rendered KIND] [--views N] [--w
   (ids mapped through the view's lattice motion), and on rendered views the share found
   of the corners whose refinement window (a quarter of the local square, as the
   detector's) lies inside the image and the lens's image circle;
+- a multi-board target (``--target-views``): the room corner of three ChArUco boards
+  (``synth.targets.corner``) rendered through a lens: boards found with their ids, corner
+  errors by target id, and the calibration from its 3-D object points against the same
+  corners as planar views, one per board (the same corner count), on the hold-out views;
 - re-detection through a first calibration (``--refine``: calibrate the rendered views'
   corners with ``--method fisheye``, detect again with ``calibration=``): corners added.
 """
@@ -95,7 +100,7 @@ def refinable_truth(kind: str, pose: np.ndarray, name: str) -> View:
     from scipy.spatial.transform import Rotation
     pc = Rotation.from_rotvec(pose[:3]).apply(pts) + pose[3:]
     uv = np.full((len(pts), 2), np.nan)
-    front = pc[:, 2] > 1e-6
+    front = synth.in_view(kind, pc)
     uv[front] = synth.true_project(kind, pc[front])
     e_col, e_row = (e.reshape(-1, 2) for e in lattice_steps(uv.reshape(rows, cols, 2)))
     gap = corner_refine.nearest_corner(e_col, e_row)
@@ -103,7 +108,7 @@ def refinable_truth(kind: str, pose: np.ndarray, name: str) -> View:
     w, h = synth.IMAGE_SIZE
     ok = np.all(np.isfinite(uv), axis=1) & corner_refine.window_holds_one_corner(np.nan_to_num(gap, nan=np.inf))
     ok &= np.all((uv >= half[:, None] + 1) & (uv <= np.array([w, h]) - 2 - half[:, None]), axis=1)
-    _, covered = render.pixel_rays(kind, synth.IMAGE_SIZE)
+    _, covered = render.unit_rays(kind, synth.IMAGE_SIZE)
     dist = cv2.distanceTransform(covered.astype(np.uint8), cv2.DIST_L2, 5)
     x, y = (np.clip(np.rint(np.nan_to_num(uv[:, k])).astype(int), 0, n - 1) for k, n in ((0, w), (1, h)))
     ok &= dist[y, x] > np.sqrt(2) * half + 1
@@ -146,18 +151,106 @@ def _print_table(header: list[str], rows: list[tuple]) -> None:
             print("  ".join("-" * w for w in widths))
 
 
+def _rendered(kind: str, args, speed: list, accuracy: list, same_id: list, refined: list) -> None:
+    """Render generate()'s training views of lens ``kind``, detect them, and add the table rows."""
+    with tempfile.TemporaryDirectory() as tmp:
+        s = synth.generate(kind, 0.0, 0, args.views)
+        poses = [(v["name"], np.array(v["rvec"] + v["tvec"])) for v in s.truth["train_views"]]
+        t0 = time.perf_counter()
+        images, truth = render.render_set(kind, poses)
+        t_render = time.perf_counter() - t0
+        for fname, img in images:
+            cv2.imwrite(str(Path(tmp) / fname), img)
+        board = BoardSpec.parse(f"chessboard:{synth.TRAIN_BOARD[0]}x{synth.TRAIN_BOARD[1]}:{synth.SQUARE:g}mm")
+        t0 = time.perf_counter()
+        det = detect_images(tmp, board, workers=args.workers)
+        t_ours = time.perf_counter() - t0
+        plain, t_plain = plain_opencv(image_paths([tmp]), board)
+        label = f"rendered {kind} ({len(images)} views)"
+        n_ours = len(det.observations.views) if det.observations else 0
+        speed.append((label, len(images), f"{n_ours}/{len(images)}", f"{len(images) / t_ours:.2f}",
+                      f"{len(plain.views) if plain else 0}/{len(images)}", f"{len(images) / t_plain:.2f}",
+                      f"{t_plain / t_ours:.2f}"))
+        accuracy.append(_row_accuracy(f"{label} vs truth: freecal", det.observations, truth, board.cols))
+        accuracy.append(_row_accuracy(f"{label} vs truth: plain OpenCV", plain, truth, board.cols))
+        visible = Observations(synth.IMAGE_SIZE, [refinable_truth(kind, p, f"{n}.png") for n, p in poses])
+        same_id.append(_row_same_id(f"{label} vs refinable truth: freecal", det.observations, visible, board.cols,
+                                    visible.n_points))
+        if args.refine and det.observations is not None:
+            from calib_core import pipeline
+            cal = pipeline.calibrate(det.observations, method="fisheye")
+            t0 = time.perf_counter()
+            again = detect_images(tmp, board, workers=args.workers, calibration=cal)
+            t_again = time.perf_counter() - t0
+            same_id.append(_row_same_id(f"{label} re-detected through a calibration", again.observations,
+                                        visible, board.cols, visible.n_points))
+            refined.append((label, f"{cal.metrics.get('rmse', float('nan')):.3f}", det.observations.n_points,
+                            again.observations.n_points if again.observations else 0, again.model_added,
+                            f"{t_again:.1f}"))
+        print(f"rendered {len(images)} images of {synth.IMAGE_SIZE[0]}x{synth.IMAGE_SIZE[1]} in {t_render:.1f} s "
+              f"({t_render / max(len(images), 1):.2f} s each, lens inversion included)", file=sys.stderr)
+
+
+
+def _rendered_target(kind: str, n_views: int, workers: int | None, method: str = "auto") -> tuple:
+    """The room corner of three ChArUco boards (``synth.targets.corner``) rendered through lens ``kind``:
+    boards found, corners against the truth of their target id, and the hold-out error of the
+    calibration from the 3-D object points against the same corners as planar views, one per board."""
+    from calib_core import pipeline
+    from calib_core.evaluation.evaluate import evaluate
+    from calib_core.synth import render_target, targets
+
+    target = targets.corner()
+    rng = np.random.default_rng(0)
+    poses = targets.corner_poses(n_views, rng)
+    with tempfile.TemporaryDirectory() as tmp:
+        for k, pose in enumerate(poses):
+            cv2.imwrite(str(Path(tmp) / f"corner_{k:02d}.png"), render_target.render_target(kind, target, pose, rng))
+        det = detect_images(tmp, target, workers=workers)
+    boards_seen = boards_found = 0
+    errors, visible = [], 0
+    for report, view_pose in zip(det.reports, poses, strict=True):
+        clear, _ = targets.seen(kind, target, view_pose, max_angle_deg=60.0)
+        on = target.board_index(clear)
+        seen_names = {target.boards[k].name for k in np.unique(on) if np.sum(on == k) >= 15}
+        found = {b["name"] for b in report.boards or [] if b["placed"] and b["n_corners"]}
+        boards_seen += len(seen_names)
+        boards_found += len(seen_names & found)
+        ids, uv = targets.seen(kind, target, view_pose)
+        visible += len(ids)
+        if det.observations is not None and report.status == "used":
+            v = det.observations.view(report.name)
+            truth = dict(zip(*targets.seen(kind, target, view_pose, max_angle_deg=89.9), strict=True))
+            errors += [np.linalg.norm(p - truth[i]) if i in truth else np.inf
+                       for i, p in zip(v.ids.tolist(), v.image_points, strict=True)]
+    e = np.array(errors)
+    obs = det.observations
+    if obs is None:
+        return (f"room corner, {kind}", n_views, f"0/{boards_seen}", "—", "—", "—", "—", "—", "—")
+    holdout = synth.generate(kind).holdout
+    solid = evaluate(pipeline.calibrate(obs, method), holdout)["rmse"]
+    planar = evaluate(pipeline.calibrate(target.split(obs), method), holdout)["rmse"]
+    return (f"room corner (3 ChArUco), {kind}", n_views, f"{boards_found}/{boards_seen}",
+            f"{len(e)}/{visible}", f"{np.median(e):.3f}", int(np.sum(e > 1.0)), method,
+            f"{solid:.4f}", f"{planar:.4f}", f"{solid / planar:.2f}")
+
+
 def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks detect", description=__doc__.split("\n\n")[0])
     ap.add_argument("--sets", default=",".join(SETS), help="comma-separated real sets of ../shared/data")
-    ap.add_argument("--rendered", default="fisheye", choices=synth.KINDS + ("none",),
-                    help="synthetic lens of the rendered images (none: skip)")
+    ap.add_argument("--rendered", default="fisheye,fisheye200",
+                    help=f"synthetic lenses of the rendered images, comma-separated, of {', '.join(synth.ALL_KINDS)} "
+                         "(none: skip)")
+    ap.add_argument("--target-views", type=int, default=12,
+                    help="rendered views of the room-corner target of three ChArUco boards (0: skip)")
+    ap.add_argument("--target-kind", default="fisheye", choices=synth.ALL_KINDS, help="its lens")
     ap.add_argument("--views", type=int, default=10, help="rendered views (generate()'s training poses)")
     ap.add_argument("--workers", type=int, default=None, help="freecal worker processes (default: all cores)")
     ap.add_argument("--refine", action="store_true",
                     help="also calibrate the rendered corners and re-detect through that calibration")
     args = ap.parse_args(argv)
 
-    speed, accuracy, same_id, refined = [], [], [], []
+    speed, accuracy, same_id, refined, targets_rows = [], [], [], [], []
     found: dict[str, tuple] = {}
     for name in [s for s in args.sets.split(",") if s]:
         root = DATA / name
@@ -184,43 +277,13 @@ def main(argv: list[str]) -> int:
         accuracy.append(_row_accuracy("BabelCalib vs .orpc: plain OpenCV", plain, ref, 22))
         same_id.append(_row_same_id("BabelCalib vs .orpc: freecal", ours, ref, 22, ref.n_points))
 
-    if args.rendered != "none":
-        with tempfile.TemporaryDirectory() as tmp:
-            s = synth.generate(args.rendered, 0.0, 0, args.views)
-            poses = [(v["name"], np.array(v["rvec"] + v["tvec"])) for v in s.truth["train_views"]]
-            t0 = time.perf_counter()
-            images, truth = render.render_set(args.rendered, poses)
-            t_render = time.perf_counter() - t0
-            for fname, img in images:
-                cv2.imwrite(str(Path(tmp) / fname), img)
-            board = BoardSpec.parse(f"chessboard:{synth.TRAIN_BOARD[0]}x{synth.TRAIN_BOARD[1]}:{synth.SQUARE:g}mm")
-            t0 = time.perf_counter()
-            det = detect_images(tmp, board, workers=args.workers)
-            t_ours = time.perf_counter() - t0
-            plain, t_plain = plain_opencv(image_paths([tmp]), board)
-            label = f"rendered {args.rendered} ({len(images)} views)"
-            n_ours = len(det.observations.views) if det.observations else 0
-            speed.append((label, len(images), f"{n_ours}/{len(images)}", f"{len(images) / t_ours:.2f}",
-                          f"{len(plain.views) if plain else 0}/{len(images)}", f"{len(images) / t_plain:.2f}",
-                          f"{t_plain / t_ours:.2f}"))
-            accuracy.append(_row_accuracy(f"{label} vs truth: freecal", det.observations, truth, board.cols))
-            accuracy.append(_row_accuracy(f"{label} vs truth: plain OpenCV", plain, truth, board.cols))
-            visible = Observations(synth.IMAGE_SIZE, [refinable_truth(args.rendered, p, f"{n}.png") for n, p in poses])
-            same_id.append(_row_same_id(f"{label} vs refinable truth: freecal", det.observations, visible, board.cols,
-                                        visible.n_points))
-            if args.refine and det.observations is not None:
-                from calib_core import pipeline
-                cal = pipeline.calibrate(det.observations, method="fisheye")
-                t0 = time.perf_counter()
-                again = detect_images(tmp, board, workers=args.workers, calibration=cal)
-                t_again = time.perf_counter() - t0
-                same_id.append(_row_same_id(f"{label} re-detected through a calibration", again.observations,
-                                            visible, board.cols, visible.n_points))
-                refined.append((label, f"{cal.metrics.get('rmse', float('nan')):.3f}", det.observations.n_points,
-                                again.observations.n_points if again.observations else 0, again.model_added,
-                                f"{t_again:.1f}"))
-            print(f"rendered {len(images)} images of {synth.IMAGE_SIZE[0]}x{synth.IMAGE_SIZE[1]} in {t_render:.1f} s "
-                  f"({t_render / max(len(images), 1):.2f} s each, lens inversion included)", file=sys.stderr)
+    for kind in [k for k in args.rendered.split(",") if k and k != "none"]:
+        if kind not in synth.ALL_KINDS:
+            print(f"skipping rendered {kind}: not one of {', '.join(synth.ALL_KINDS)}", file=sys.stderr)
+            continue
+        _rendered(kind, args, speed, accuracy, same_id, refined)
+    if args.target_views:
+        targets_rows.append(_rendered_target(args.target_kind, args.target_views, args.workers))
 
     print("\nDetection speed (freecal: all cores, partial boards; plain: findChessboardCorners + cornerSubPix, "
           "one process)\n")
@@ -234,6 +297,13 @@ def main(argv: list[str]) -> int:
           "window lies inside the image and the image circle)\n")
     _print_table(["corners of", "found", "with reference", "not in reference", "share", "median", "< 0.5 px",
                   "> 1 px"], same_id)
+    if targets_rows:
+        print("\nA multi-board target: boards seen (>= 15 corners within 60 deg of their normal) and found with "
+              "their ids; corners found of those visible within 75 deg; wrong: > 1 px from the truth of their id; "
+              "hold-out rmse (px, the protocol's noise-free views) of the calibration from the 3-D object points "
+              "and of the same corners as planar views, one per board\n")
+        _print_table(["target", "views", "boards found", "corners", "median px", "wrong", "method",
+                      "hold-out 3-D", "hold-out planar", "ratio"], targets_rows)
     if refined:
         print("\nRe-detection through a first calibration (fisheye model fitted to the first detection)\n")
         _print_table(["views", "calibration rmse px", "corners first", "corners again", "added by the model",

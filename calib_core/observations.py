@@ -61,7 +61,7 @@ class Observations:
 
     def select(self, names: list[str]) -> Observations:
         """The views named, in that order."""
-        return Observations(self.image_size, [self.view(n) for n in names], self.board)
+        return Observations(self.image_size, [self.view(n) for n in names], self.board, dict(self.extra))
 
     # ---- JSON -----------------------------------------------------------
     def to_json(self) -> dict[str, Any]:
@@ -79,6 +79,8 @@ class Observations:
         if self.board is not None:
             out["board"] = self.board
         out["views"] = views
+        # Extra fields (formats.md allows them): e.g. "target", the freecal.target/1 the views come from.
+        out.update({k: v for k, v in self.extra.items() if k not in out})
         return out
 
     @classmethod
@@ -114,7 +116,8 @@ class Observations:
                 raise FormatError(f"views[{k}].name: {view.name!r} appears twice; view names must be unique")
             seen.add(view.name)
             views.append(view)
-        return cls(image_size, views, board)
+        extra = {k: v for k, v in doc.items() if k not in ("format", "image_size", "board", "views")}
+        return cls(image_size, views, board, extra)
 
     @classmethod
     def load(cls, path: str | Path) -> Observations:
@@ -132,10 +135,15 @@ def read_json(path: str | Path) -> Any:
         raise FormatError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise FormatError(f"{path}: cannot be read as UTF-8 text ({exc})") from None
+    return parse_json(text, str(path))
+
+
+def parse_json(text: str, source: str) -> Any:
+    """JSON text from ``source`` (a file name, "standard input"), a FormatError naming it if it is not JSON."""
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
-        raise FormatError(f"{path}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
+        raise FormatError(f"{source}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
 
 
 def write_json(path: str | Path, doc: Any) -> None:

@@ -42,6 +42,9 @@ def usable_views(obs: Observations) -> tuple[Observations, list[dict[str, str]]]
     for v in obs.views:
         if len(v) < MIN_POINTS_PER_VIEW:
             dropped.append({"name": v.name, "reason": f"too few corners ({len(v)}, need at least {MIN_POINTS_PER_VIEW})"})
+        elif on_one_line(v.object_points):
+            dropped.append({"name": v.name, "reason": "its corners all lie on one line of the board, "
+                                                      "which cannot fix the board's pose"})
         else:
             keep.append(v)
     if len(keep) < MIN_VIEWS:
@@ -50,6 +53,13 @@ def usable_views(obs: Observations) -> tuple[Observations, list[dict[str, str]]]
             "at different angles"
         )
     return Observations(obs.image_size, keep, obs.board), dropped
+
+
+def on_one_line(object_points: np.ndarray) -> bool:
+    """Are the points (N, 3) collinear (one row of a board, say)?"""
+    centred = object_points - object_points.mean(axis=0)
+    sv = np.linalg.svd(centred, compute_uv=False)
+    return bool(sv[1] <= 1e-6 * max(sv[0], 1e-300))
 
 
 def robust_outliers(res: np.ndarray, threshold: float) -> np.ndarray:

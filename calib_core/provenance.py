@@ -21,13 +21,13 @@ UNKNOWN_UNITS = "the units of the observations' object_points"  # no board recor
 
 
 def freecal_version() -> str:
-    """The installed package's version ("unknown" when run from a tree never installed)."""
+    """The installed package's version (``freecal --version``, reports, calibrations)."""
     from importlib.metadata import PackageNotFoundError, version
 
     try:
         return version("freecal")
-    except PackageNotFoundError:
-        return "unknown"
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown (not installed: pip install -e .)"
 
 
 def observations_sha256(obs: Observations) -> str:

@@ -6,6 +6,7 @@ from datetime import UTC, datetime
 from typing import Any
 
 from ..base.context import Context
+from ..base.repository.jobs import split_settings
 from .schemas import ImagePublic, JobPublic, SetPublic, Timings
 from .services import sets as set_service
 
@@ -24,6 +25,7 @@ def set_public(ctx: Context, row: dict[str, Any], with_images: bool) -> SetPubli
         n_views=row["n_views"], coverage=row["coverage"], warnings=row["warnings"],
         created_at=_dt(row["created_at"]), detection_job=job_id,
         images=[ImagePublic(**im) for im in images] if with_images and images is not None else None,
+        **(set_service.curation(ctx, row) if with_images else {}),
     )
 
 
@@ -41,8 +43,9 @@ def job_public(row: dict[str, Any]) -> JobPublic:
         downloads = {"observations.json": f"/api/sets/{row['set_id']}/observations.json"}
     else:
         downloads = {name: f"/api/jobs/{row['id']}/{name}" for name in row["artefacts"]}
+    settings, exclude = split_settings(row["settings"])
     return JobPublic(
-        id=row["id"], kind=row["kind"], set_id=row["set_id"], method=row["method"], settings=row["settings"],
+        id=row["id"], kind=row["kind"], set_id=row["set_id"], method=row["method"], settings=settings, exclude=exclude,
         state=row["state"], stage=row["stage"], progress=row["progress"], error=row["error"],
         attempts=row["attempts"], cancel_requested=row["cancel_requested"], worker=row["worker"],
         created_at=_dt(row["created_at"]), started_at=_dt(start), finished_at=_dt(end), timings=timings,

@@ -28,6 +28,21 @@ class ImagePublic(BaseModel):
     height: int | None = None
 
 
+class Skipped(BaseModel):
+    name: str = Field(description="a file of the upload (a zip's member as 'zip: member')")
+    reason: str = Field(description="why it was not used, in plain words")
+
+
+class BoardSuggestion(BaseModel):
+    """The board's size as the photos show it, when it is not the size given."""
+    spec: str = Field(description="the board spec with that size, e.g. chessboard:15x9:26mm")
+    cols: int = Field(description="inner corners across")
+    rows: int = Field(description="inner corners down")
+    n_photos: int = Field(description="photos in which the whole grid of that size was seen")
+    n_images: int = Field(description="photos uploaded")
+    message: str = Field(description="what was found and what to do, in plain words")
+
+
 class SetPublic(BaseModel):
     id: str
     name: str
@@ -44,6 +59,15 @@ class SetPublic(BaseModel):
     created_at: datetime
     detection_job: str | None = None
     images: list[ImagePublic] | None = Field(None, description="per-image detection status (in reads of one set)")
+    skipped: list[Skipped] = Field(default_factory=list, description="files of the upload that were not used, "
+                                   "and why (in reads of one set)")
+    board_suggestion: BoardSuggestion | None = Field(None, description="the board's size as the photos show it, "
+                                                     "when detection suggests the size given is wrong")
+
+
+class DetectionCreate(BaseModel):
+    board: str = Field(max_length=200, description="the board to detect in the set's photos, e.g. "
+                       "chessboard:15x9:26mm (a set's board_suggestion.spec)")
 
 
 class SetsPublic(BaseModel):
@@ -64,6 +88,8 @@ class JobCreate(BaseModel):
                         "predicts views left out of its fit), or 'compare' for all methods")
     settings: dict[str, Any] = Field(default_factory=dict, description="the method's settings, e.g. "
                                      "{\"knots\": \"uniform\", \"intervals\": [8, 8], \"lambda_smooth\": 0.1}")
+    exclude: list[str] = Field(default_factory=list, description="names of the set's views to leave out of this "
+                               "calibration (curation: re-run without them, no new upload)")
 
     @model_validator(mode="after")
     def one_input(self) -> JobCreate:
@@ -85,6 +111,7 @@ class JobPublic(BaseModel):
     set_id: str | None
     method: str | None
     settings: dict[str, Any]
+    exclude: list[str] = Field(default_factory=list, description="the views left out of this calibration")
     state: JobState
     stage: str | None = Field(description="detect, initialise, knots, control points, joint optimisation, metrics ...")
     progress: float = Field(description="0-100 %")

@@ -56,6 +56,14 @@ class Storage:
     def observations_path(self, set_id: str) -> Path:
         return self.set_dir(set_id) / "observations.json"
 
+    def skipped_path(self, set_id: str) -> Path:
+        """The upload's files that were not used, with why (backend/app/uploads.py)."""
+        return self.set_dir(set_id) / "skipped.json"
+
+    def board_suggestion_path(self, set_id: str) -> Path:
+        """The board size the photos show, when it is not the set's (backend/queue/detect_job.py)."""
+        return self.set_dir(set_id) / "board_suggestion.json"
+
     def job_dir(self, job_id: str) -> Path:
         return self.root / "jobs" / job_id
 

@@ -3,16 +3,17 @@ freecal calibrate IMAGES_OR_DIR... --board SPEC ... (detects first, then calibra
 from __future__ import annotations
 
 import argparse
-import contextlib
-import sys
 from pathlib import Path
 
 from calib_core import Observations, calibrate
 from calib_core.detection.detect import IMAGE_SUFFIXES
 from calib_core.errors import SettingsError
 
-from .detect import BOARD_HELP, detect_with_report
-from .output import StageProgress, print_json, table
+from .detect import BOARD_HELP, TARGET_HELP, detect_with_report
+from .inputs import STDIN, load_observations
+from .output import claim_stdout, json_text, print_json, table
+from .outputs import OutputFolder, Outputs
+from .progress import StageProgress
 
 
 def _pair(text: str) -> tuple[int, int]:
@@ -67,15 +68,19 @@ def register(sub) -> None:
     p = sub.add_parser("calibrate", help="calibrate from observations (corners) JSON, or from images",
                        description="Calibrate a camera from freecal.observations/1 corners, or from photos "
                                    "(with --board: detect the board first, then calibrate).")
-    p.add_argument("observations", nargs="+", metavar="OBS.json | IMAGES",
-                   help="freecal.observations/1 JSON file, or image files and/or folders (with --board)")
+    p.add_argument("observations", nargs="+", metavar="OBS.json | - | IMAGES",
+                   help="freecal.observations/1 JSON file (- : standard input), or image files and/or folders "
+                        "(with --board)")
     p.add_argument("--board", help="detect this board in the images first; " + BOARD_HELP)
+    p.add_argument("--target", metavar="T.json", help="detect these boards in the images first: " + TARGET_HELP)
     p.add_argument("--workers", type=int, default=None, help="detection worker processes (default: all cores)")
     p.add_argument("--method", default="auto", metavar="METHOD",
                    help="calibration method: auto (the default: the candidate that best predicts views left out "
                         "of its fit), bspline (the paper's field; settings below), zhang, rational, fisheye, mls, tps")
-    p.add_argument("-o", "--output", help="write the freecal.calibration/1 JSON here")
-    p.add_argument("--json", action="store_true", help="print the calibration JSON instead of a summary")
+    p.add_argument("-o", "--output", metavar="CAL.json", help="write the freecal.calibration/1 JSON here (- : standard output)")
+    p.add_argument("--json", action="store_true",
+                   help="print the calibration JSON on standard output instead of the summary (which goes to "
+                        "standard error)")
     p.add_argument("--report", metavar="DIR",
                    help="write the report the results page shows into DIR: residual tables (JSON, CSV), heatmap, "
                         "distortion field, knot grid, projection uncertainty, and their figures (PNG)")
@@ -115,58 +120,67 @@ def _value(text: str):
 
 def observations_of(args) -> Observations:
     """The observations JSON, or (with --board) the corners detected in the images given."""
-    if args.board:
-        # With --json, stdout carries the calibration alone: the detection report goes to stderr.
-        with contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext():
-            det = detect_with_report(args.observations, args.board, args.quiet or args.json, args.workers)
-            print()
+    if args.board or args.target:
+        det = detect_with_report(args.observations, args.board, args.quiet, args.workers, target_path=args.target)
+        print()
         return det.observations
+    if args.observations == [STDIN]:
+        return load_observations(STDIN)
     first = Path(args.observations[0])
     if len(args.observations) != 1 or first.is_dir() or first.suffix.lower() in IMAGE_SUFFIXES:
         raise SettingsError("to calibrate from images, say which board they show: --board SPEC "
-                            "(e.g. chessboard:9x6:25mm); otherwise give one observations JSON file")
-    return Observations.load(args.observations[0])
+                            "(e.g. chessboard:9x6:25mm) or --target T.json (several boards on one object); "
+                            "otherwise give one observations JSON file")
+    return load_observations(args.observations[0])
 
 
 def run(args) -> int:
+    outputs = Outputs()
+    cal_file = outputs.file(args.output, "-o", "cal.json")
+    report = outputs.folder(args.report, "--report")
+    settings = settings_of(args)
+    if args.json:
+        claim_stdout("--json")
     obs = observations_of(args)
-    cal = calibrate(obs, args.method, progress=StageProgress(args.quiet or args.json),
-                    outlier_sigma=args.outlier_sigma, **settings_of(args))
-    if args.output:
-        cal.save(args.output)
-    written = write_report(Path(args.report), cal, obs) if args.report else []
+    with StageProgress(args.quiet) as progress:
+        cal = calibrate(obs, args.method, progress=progress, outlier_sigma=args.outlier_sigma, **settings)
+    from calib_core.report.tables import camera
+
+    cal.diagnostics["camera"] = camera(cal, obs)  # parameters ± σ, field of view, verdict: as the page shows them
+    with outputs.writing():
+        if cal_file is not None:
+            cal_file.write(json_text(cal.to_json()))
+        written = write_report(report, cal, obs) if report is not None else []
     if args.json:
         print_json(cal.to_json())
-    else:
-        print_summary(cal)
-        if args.output:
-            print(f"\nwrote {args.output}")
-        if written:
-            print(f"wrote the report into {args.report}: {', '.join(written)}")
+        return 0
+    print_summary(cal)
+    print_flags(cal, obs)
+    if cal_file is not None and not cal_file.to_stdout:
+        print(f"\nwrote {cal_file}")
+    if written:
+        print(f"wrote the report into {report}: {', '.join(written)}")
     return 0
 
 
-def write_report(folder: Path, cal, obs: Observations) -> list[str]:
-    """The results page's products and their figures, as files in ``folder``."""
+def write_report(folder: OutputFolder, cal, obs: Observations) -> list[str]:
+    """The results page's products, their figures and the page itself (report.html, as
+    ``freecal report`` writes it) as files in ``folder`` (inside ``Outputs.writing``:
+    they land with the other outputs, or not at all)."""
     import json
 
     from calib_core.calibration import json_safe
-    from calib_core.report import figures, tables
+    from calib_core.report import tables
 
-    products = tables.report_files(cal, obs)
-    products["knot_cells.json"] = tables.knot_cells(cal, products["corner_residuals.json"])
-    products["uncertainty.json"] = tables.uncertainty_map(cal, obs)
-    files = {name: content for name, content in products.items() if content is not None}
-    folder.mkdir(parents=True, exist_ok=True)
-    for name, content in files.items():
-        if isinstance(content, str):
-            (folder / name).write_text(content)
-        else:
-            (folder / name).write_text(json.dumps(json_safe(content), indent=1 if name == "calibration.json" else None))
-    for name, png in figures.report_figures(products).items():
-        (folder / name).write_bytes(png)
-        files[name] = png
-    return sorted(files)
+    from .report import write_report_page
+
+    products = tables.report_products(cal, obs)
+    for name, content in products.items():
+        text = content if isinstance(content, str) else json.dumps(
+            json_safe(content), indent=1 if name == "calibration.json" else None)
+        folder.file(name).write(text)
+    figures = write_report_page(folder.file("report.html"), folder, cal, obs, "calibration", products)
+    return sorted([*products, *figures, "report.html"])
 
 
 def print_summary(cal) -> None:
@@ -192,6 +206,8 @@ def print_summary(cal) -> None:
         chosen = [cal.settings.get("intervals_used"), cal.settings.get("bandwidth_factor_used")]
         table(["grid", "bandwidth factor", "lambda_smooth", "validation [px^2]", "effective parameters", "chosen"],
               [_curve_row(c, chosen) for c in curve])
+    if "camera" in d:
+        print_camera(d["camera"])
     sv = d.get("solver", {})
     print(f"solver: {sv.get('status')} after {sv.get('iterations')} iterations ({sv.get('message')}), "
           f"{sv.get('seconds', 0):.2f} s")
@@ -202,6 +218,18 @@ def print_summary(cal) -> None:
     print(f"\ncentre rmse {m['rmse_center']:.4f} px, edge rmse {m['rmse_edge']:.4f} px")
     for dv in cal.dropped_views:
         print(f"dropped {dv['name']}: {dv['reason']}")
+
+
+def print_camera(cam: dict) -> None:
+    """The parameters ± one standard deviation, the field of view and the verdict."""
+    print(f"model: {cam['model']}, {cam['chosen']}")
+    table(["parameter", "value", "± one standard deviation", "unit", "note"],
+          [(p["name"], f"{p['value']:.6g}", "—" if p["std"] is None else f"{p['std']:.2g}", p["unit"], p.get("note", ""))
+           for p in cam["parameters"]])
+    fov = cam["field_of_view_deg"]
+    print("field of view: " + ", ".join(f"{k} {'beyond the lens' if v is None else f'{v:.1f} deg'}"
+                                        for k, v in fov.items()))
+    print(f"verdict: {cam['verdict']['text']}")
 
 
 def print_choice(choice: dict) -> None:
@@ -226,3 +254,15 @@ def _curve_row(c: dict, chosen: list) -> tuple:
         return grid, shown, "—", "—", "—", f"skipped ({c['skipped']})"
     return (grid, shown, c["lambda_smooth"], c["cv"], f"{c['dof']:.0f}",
             "*" if [c["intervals"], factor] == chosen else "")
+
+
+def print_flags(cal, obs: Observations) -> None:
+    """The views that look suspicious (``calib_core.evaluation.view_flags``), with why; silent when none do."""
+    from calib_core.evaluation.view_flags import view_flags
+
+    flagged = [r for r in view_flags(cal, obs) if r["flags"]]
+    if not flagged:
+        return
+    print(f"\n{len(flagged)} view(s) look suspicious:")
+    for r in flagged:
+        print(f"  {r['view']}: " + "; ".join(f["text"] for f in r["flags"]))

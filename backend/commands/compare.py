@@ -1,30 +1,36 @@
 """freecal compare OBS.json [--holdout H.json] [--splits 5] [--methods a,b] [--json]"""
 from __future__ import annotations
 
-from calib_core import Observations
 from calib_core.evaluation.compare import compare
 
-from .output import StageProgress, print_json, table
+from .inputs import load_observations, one_stdin
+from .output import claim_stdout, print_json, table
+from .progress import StageProgress
 
 
 def register(sub) -> None:
     p = sub.add_parser("compare", help="every method on the same corners, side by side, and a verdict",
                        description="Calibrate with every method on the same corners; compare fit, "
                                    "cross-validated and hold-out errors; pick the method to trust.")
-    p.add_argument("observations", help="freecal.observations/1 JSON file")
-    p.add_argument("--holdout", help="freecal.observations/1 JSON of other views to validate on (pose-only refit)")
+    p.add_argument("observations", help="freecal.observations/1 JSON file (- : standard input)")
+    p.add_argument("--holdout", help="freecal.observations/1 JSON of other views to validate on (pose-only refit; "
+                                     "- : standard input)")
     p.add_argument("--splits", type=int, default=5, help="cross-validation folds over the views (0: none)")
     p.add_argument("--methods", help="comma-separated methods (default: zhang,rational,fisheye,mls,tps,bspline)")
-    p.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
+    p.add_argument("--json", action="store_true", help="print one JSON object on standard output instead of tables")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
-    obs = Observations.load(args.observations)
-    holdout = Observations.load(args.holdout) if args.holdout else None
+    one_stdin(args.observations, args.holdout)
+    if args.json:
+        claim_stdout("--json")
+    obs = load_observations(args.observations)
+    holdout = load_observations(args.holdout) if args.holdout else None
     methods = [m.strip() for m in args.methods.split(",") if m.strip()] if args.methods else None
-    result = compare(obs, methods, args.splits, holdout, StageProgress(args.quiet or args.json))
+    with StageProgress(args.quiet, "comparing") as progress:
+        result = compare(obs, methods, args.splits, holdout, progress)
     if args.json:
         print_json(result)
         return 0

@@ -1,17 +1,19 @@
 """freecal export CAL.json --to opencv|ros|mrcal|colmap|nerfstudio|kalibr|MODEL [--model M] -o FILE
-[--observations OBS.json] [--error-map MAP.npz] [--uncertainty [FILE]] [--alpha A | --keep K | --focal F]"""
+[--observations OBS.json] [--error-map MAP.npz] [--uncertainty [FILE]] [--alpha A | --keep K | --focal F] [--json]"""
 from __future__ import annotations
 
+import io
 import json
-from pathlib import Path
 
 import numpy as np
 
-from calib_core import Calibration, Observations
 from calib_core.errors import SettingsError
 from calib_core.exports import LEAN_MODELS, MODELS, TARGETS, export
 from calib_core.exports.lean_fit import FitError, save_error_map
 
+from .inputs import load_calibration, load_observations, one_stdin
+from .output import claim_stdout, print_json
+from .outputs import Outputs
 from .undistort import ALPHA_HELP, FOCAL_HELP, KEEP, chosen_camera
 
 CONSUMERS = "; ".join(f"{t.name}: {t.label} ({', '.join(dict.fromkeys(t.models.values()))})" for t in TARGETS.values())
@@ -23,7 +25,7 @@ def register(sub) -> None:
                                    "already one of the tool's models is fitted by the closest one, and the fit "
                                    "error (what the export loses) over the covered region and the whole image is "
                                    "printed and stored. " + CONSUMERS)
-    p.add_argument("calibration", help="freecal.calibration/1 JSON file")
+    p.add_argument("calibration", help="freecal.calibration/1 JSON file (- : standard input)")
     p.add_argument("--to", required=True, choices=tuple(TARGETS) + tuple(LEAN_MODELS),
                    help="the tool (" + ", ".join(TARGETS) + "); a model name (opencv8, kb4, ...) means opencv "
                         "with that model")
@@ -31,7 +33,7 @@ def register(sub) -> None:
                    help="the exported model (auto: the calibration's own if the tool knows it, else the closest "
                         "of the tool's models)")
     p.add_argument("--observations", help="fit only over the convex hull of these corners (freecal.observations/1)")
-    p.add_argument("--error-map", help="write the fit error map (.npz: error_px, covered, u, v)")
+    p.add_argument("--error-map", help="write the fit error map (.npz: error_px, covered, u, v; - : standard output)")
     p.add_argument("--uncertainty", nargs="?", const="", metavar="FILE",
                    help="write the projection-uncertainty sidecar (JSON; default: OUTPUT.uncertainty.json); "
                         "needs --observations")
@@ -40,7 +42,8 @@ def register(sub) -> None:
                    help="--to ros: the rectified camera P keeps valid pixels (default), all, or the covered region")
     g.add_argument("--alpha", type=float, help="--to ros: the rectified camera P, " + ALPHA_HELP)
     g.add_argument("--focal", type=float, help="--to ros: the rectified camera P, " + FOCAL_HELP)
-    p.add_argument("-o", "--output", required=True, help="output file")
+    p.add_argument("-o", "--output", required=True, help="output file (- : standard output)")
+    p.add_argument("--json", action="store_true", help="print what was written and the fit errors as JSON")
     p.set_defaults(run=run)
 
 
@@ -53,35 +56,58 @@ def run(args) -> int:
         choices = " | ".join(f"{m} ({name})" for m, name in target.models.items())
         raise SettingsError(f"--model {model}: {target.label} has no such model; choose --model {choices}, "
                             "or leave --model out for the closest")
-    rectifying = args.keep or args.alpha is not None or args.focal is not None
-    if rectifying and fmt != "ros":
+    if (args.keep or args.alpha is not None or args.focal is not None) and fmt != "ros":
         raise SettingsError("--keep, --alpha and --focal choose ROS's rectified camera (P); they apply to --to ros only")
     if args.uncertainty is not None and not args.observations:
         raise SettingsError("--uncertainty needs --observations OBS.json (the corners the calibration was fitted to)")
-    source = Calibration.load(args.calibration)
-    obs = Observations.load(args.observations) if args.observations else None
+    if args.uncertainty == "" and args.output == "-":
+        raise SettingsError("--uncertainty: name the file (--uncertainty FILE) when -o is standard output")
+    outputs = Outputs()
+    written = outputs.file(args.output, "-o", target.file_name)
+    error_map = outputs.file(args.error_map, "--error-map", "error_map.npz")
+    sidecar = None if args.uncertainty is None else outputs.file(
+        args.uncertainty or f"{args.output}.uncertainty.json", "--uncertainty", "camera.uncertainty.json")
+    one_stdin(args.calibration, args.observations)
+    if args.json:
+        claim_stdout("--json")
+    source = load_calibration(args.calibration)
+    obs = load_observations(args.observations) if args.observations else None
     covered = None if obs is None else np.concatenate([np.asarray(v.image_points, dtype=np.float64) for v in obs.views])
     done = export(source, fmt, model, covered,
                   rectify=lambda fit: chosen_camera(fit.calibration, args.keep, args.alpha, args.focal, None, fit.region))
-    Path(args.output).write_text(done.text)
-    written = [args.output]
-    if args.error_map:
-        save_error_map(args.error_map, done.fit)
-        written.append(args.error_map)
-    if args.uncertainty is not None:
+    uncertainty = None
+    if sidecar is not None:
         from calib_core.exports.sidecar import uncertainty_sidecar
         from calib_core.report.tables import uncertainty_map
 
-        path = args.uncertainty or f"{args.output}.uncertainty.json"
-        doc = uncertainty_sidecar(done, source, uncertainty_map(source, obs), args.output)
-        Path(path).write_text(json.dumps(doc) + "\n")
-        written.append(path)
+        uncertainty = uncertainty_sidecar(done, source, uncertainty_map(source, obs), str(written))
+    with outputs.writing():
+        assert written is not None  # -o is required
+        written.write(done.text)
+        if error_map is not None:
+            npz = io.BytesIO()
+            save_error_map(npz, done.fit)
+            error_map.write(npz.getvalue())
+        if sidecar is not None:
+            sidecar.write(json.dumps(uncertainty) + "\n")
     fit = done.fit
+    files = [str(f) for f in (written, error_map, sidecar) if f is not None]
+    if args.json:
+        print_json({"format": fmt, "model": fit.name, "consumer_model": done.consumer_model, "exact": fit.exact,
+                    "output": str(written), "error_map": None if error_map is None else str(error_map),
+                    "uncertainty": None if sidecar is None else str(sidecar),
+                    "fit_error": None if fit.exact else {"covered": fit.covered.to_json(), "image": fit.image.to_json(),
+                                                         "n_beyond_reach": fit.n_beyond, "units": "px"},
+                    "candidates": [{"model": f.name, "covered_rms_px": f.covered.rms, "image_rms_px": f.image.rms}
+                                   for f in done.tried],
+                    "rectified_camera": None if done.camera is None else done.camera.to_json()})
+        return 0
     if fit.exact:
         print(f"{fmt} / {done.consumer_model} ({fit.name}): exact, the calibration is this model")
     else:
         choice = "" if not done.tried else ", the closest of " + ", ".join(
-            f"{f.name} (rms {f.covered.rms:.4g} px covered, {f.image.rms:.4g} px image)" for f in done.tried) + "; another with --model"
+            f"{f.name} (rms {f.covered.rms:.4g} px covered, {f.image.rms:.4g} px image)" for f in done.tried
+        ) + "; another with --model"
         print(f"{fmt} / {done.consumer_model} ({fit.name}): fitted to the {fit.fitted_to} calibration{choice}")
         print(f"fit error, covered region: {_error(fit.covered)}")
         beyond = f" ({fit.n_beyond} samples past the model's reach)" if fit.n_beyond else ""
@@ -92,7 +118,7 @@ def run(args) -> int:
     if done.camera is not None:
         print(f"rectified camera (P): focal {done.camera.focal:.3f} px, centre ({done.camera.cx:.3f}, "
               f"{done.camera.cy:.3f})" + (f"; note: {done.camera.note}" if done.camera.note else ""))
-    print("wrote " + ", ".join(written))
+    print("wrote " + ", ".join(files))
     return 0
 
 

@@ -1,11 +1,62 @@
-"""Printing shared by the sub-commands: tables, progress, JSON."""
+"""Printing shared by the sub-commands: tables, JSON, and which stream gets what.
+
+Standard output carries either the text a person reads or, with ``--json`` or an
+output of ``-``, the data alone (one document), so that it can be piped into
+another command; everything else then goes to standard error, which always carries
+the progress and the notes.
+"""
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
-import time
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Iterator, Sequence
+from typing import Any, TextIO
+
+from calib_core.errors import SettingsError
+
+_data: TextIO | None = None      # the real standard output while a command runs
+_claimed_by: str | None = None   # the flag that claimed it for data (--json, -o -)
+
+
+@contextlib.contextmanager
+def stdout_session() -> Iterator[None]:
+    """One command run: standard output is the person's until a flag claims it for data."""
+    global _data, _claimed_by
+    saved = sys.stdout
+    _data, _claimed_by = saved, None
+    try:
+        yield
+    finally:
+        sys.stdout.flush()
+        sys.stdout = saved
+        _data, _claimed_by = None, None
+
+
+def claim_stdout(flag: str) -> None:
+    """``flag`` writes data on standard output: from now on the text a person
+    reads goes to standard error. Two flags cannot both have it."""
+    global _claimed_by
+    if _claimed_by is not None and _claimed_by != flag:
+        raise SettingsError(f"{_claimed_by} and {flag} both write to standard output: keep one")
+    _claimed_by = flag
+    sys.stdout = sys.stderr
+
+
+def data_stream() -> TextIO:
+    return _data if _data is not None else sys.stdout
+
+
+def write_data(data: bytes) -> None:
+    """Bytes of a document on the real standard output."""
+    stream = data_stream()
+    stream.flush()
+    if hasattr(stream, "buffer"):
+        stream.buffer.write(data)
+        stream.buffer.flush()
+    else:  # a text stream without bytes (some test captures): the documents are UTF-8 text
+        stream.write(data.decode("utf-8"))
+    stream.flush()
 
 
 def table(headers: Sequence[str], rows: Sequence[Sequence[Any]], file=None) -> None:
@@ -24,24 +75,16 @@ def table(headers: Sequence[str], rows: Sequence[Sequence[Any]], file=None) -> N
         print("  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)), file=out)
 
 
+def json_text(doc: Any) -> str:
+    """A document as freecal writes and prints JSON: strict (a non-finite number is null), one space of indent."""
+    from calib_core.calibration import json_safe
+
+    return json.dumps(json_safe(doc), indent=1, allow_nan=False) + "\n"
+
+
 def print_json(doc: Any) -> None:
-    json.dump(doc, sys.stdout, indent=1)
-    sys.stdout.write("\n")
-
-
-class StageProgress:
-    """progress(stage, fraction) → one line per stage on stderr, with elapsed time."""
-
-    def __init__(self, quiet: bool = False):
-        self.quiet = quiet
-        self.stage = None
-        self.t0 = time.perf_counter()
-
-    def __call__(self, stage: str, fraction: float) -> None:
-        if self.quiet or stage == self.stage:
-            return
-        self.stage = stage
-        print(f"[{time.perf_counter() - self.t0:6.2f} s] {stage} ({100 * fraction:.0f} %)", file=sys.stderr, flush=True)
+    """The machine-readable result of ``--json``, on the real standard output."""
+    write_data(json_text(doc).encode("utf-8"))
 
 
 def require_service(command: str) -> None:

@@ -4,7 +4,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from calib_core import Calibration
 from calib_core.errors import SettingsError
 from calib_core.products.rectify import (
     RectifiedCamera,
@@ -17,6 +16,10 @@ from calib_core.products.rectify import (
     undistort_maps,
 )
 
+from .inputs import load_calibration
+from .output import claim_stdout, print_json
+from .outputs import Outputs
+
 KEEP = {"valid": 0.0, "all": 1.0}  # and "covered": the corners' region, covered_camera
 KEEP_HELP = ("valid: only pixels with a source (default); all: every photo pixel; covered: only the region the "
              "corners covered (where the lens was measured)")
@@ -28,7 +31,7 @@ def register(sub) -> None:
     p = sub.add_parser("undistort", help="rectified images and undistortion maps of a calibration",
                        description="Rectify photos to an ideal pinhole camera (any calibration method), and "
                                    "export the maps (maps.npz; map_x.tiff/map_y.tiff float32 for cv2.remap).")
-    p.add_argument("calibration", help="freecal.calibration/1 JSON file")
+    p.add_argument("calibration", help="freecal.calibration/1 JSON file (- : standard input)")
     p.add_argument("images", nargs="*", help="photos to rectify (the calibration's image size)")
     p.add_argument("-o", "--output", required=True, help="output directory")
     g = p.add_mutually_exclusive_group()
@@ -37,6 +40,7 @@ def register(sub) -> None:
     g.add_argument("--focal", type=float, help=FOCAL_HELP)
     p.add_argument("--size", help="rectified image size WxH (default: the photo's)")
     p.add_argument("--maps", action="store_true", help="also write the maps (always written when no images are given)")
+    p.add_argument("--json", action="store_true", help="print the rectified camera and the files written as JSON")
     p.set_defaults(run=run)
 
 
@@ -64,27 +68,36 @@ def chosen_camera(cal, keep: str | None, alpha: float | None, focal: float | Non
 def run(args) -> int:
     import cv2
 
-    cal = Calibration.load(args.calibration)
+    outputs = Outputs()
+    folder = outputs.folder(args.output, "-o")
+    assert folder is not None  # -o is required
+    if args.json:
+        claim_stdout("--json")
+    cal = load_calibration(args.calibration)
     camera = chosen_camera(cal, args.keep, args.alpha, args.focal, parse_size(args.size))
     maps = undistort_maps(cal, camera)
-    out = Path(args.output)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "rectified_camera.json").write_text(json.dumps(camera.to_json(), indent=1) + "\n")
-    written = [out / "rectified_camera.json"]
-    if args.maps or not args.images:
-        written += save_maps(out, *maps, camera)
-    for name in args.images:
-        image = cv2.imread(name, cv2.IMREAD_UNCHANGED)
-        if image is None:
-            raise RectifyError(f"{name}: not an image OpenCV can read")
-        target = out / Path(name).name
-        if not cv2.imwrite(str(target), rectify_image(cal, image, camera, maps)):
-            raise RectifyError(f"could not write {target}")
-        written.append(target)
+    with outputs.writing():
+        out = folder.staging()  # everything lands in the folder together at the end
+        (out / "rectified_camera.json").write_text(json.dumps(camera.to_json(), indent=1) + "\n")
+        written = [out / "rectified_camera.json"]
+        if args.maps or not args.images:
+            written += save_maps(out, *maps, camera)
+        for name in args.images:
+            image = cv2.imread(name, cv2.IMREAD_UNCHANGED)
+            if image is None:
+                raise RectifyError(f"{name}: not an image OpenCV can read")
+            target = out / Path(name).name
+            if not cv2.imwrite(str(target), rectify_image(cal, image, camera, maps)):
+                raise RectifyError(f"could not write {Path(args.output) / target.name}")
+            written.append(target)
+    files = [str(folder.target / p.name) for p in written]
+    if args.json:
+        print_json({"rectified_camera": camera.to_json(), "written": files})
+        return 0
     print(f"rectified camera: focal {camera.focal:.3f} px, centre ({camera.cx:.3f}, {camera.cy:.3f}), "
           f"{camera.width} x {camera.height}")
     if camera.note:
         print(f"note: {camera.note}")
-    for path in written:
+    for path in files:
         print(f"wrote {path}")
     return 0

@@ -29,9 +29,32 @@ def write_comparison(out: Path, result: dict[str, Any], obs: Observations,
     return sorted(set(names))
 
 
-def summary(cal: Calibration) -> dict[str, Any]:
+def summary(cal: Calibration, excluded: int = 0) -> dict[str, Any]:
+    """What the jobs list and the side-by-side table of a set's calibrations show without reading files:
+    the figures, the model and verdict in words, the views used and left out, and the error on views left
+    out of the fit (``validation``) where the method measured one."""
+    camera = cal.diagnostics.get("camera") or {}
     return json_safe({"method": cal.method, "metrics": cal.metrics, "n_views": len(cal.views),
-                      "dropped_views": len(cal.dropped_views)})
+                      "dropped_views": len(cal.dropped_views), "excluded_views": excluded,
+                      "model": camera.get("model"), "grade": (camera.get("verdict") or {}).get("grade"),
+                      **validation_of(cal)})
+
+
+def validation_of(cal: Calibration) -> dict[str, Any]:
+    """The model choice's chosen candidate (method auto: rmse per axis on views left out, px), or the
+    B-spline's chosen knot grid (validation error, px²)."""
+    choice = cal.diagnostics.get("model_choice")
+    if choice:
+        chosen = next((c for c in choice.get("candidates", []) if c.get("chosen")), None)
+        if chosen and chosen.get("validation_rmse") is not None:
+            return {"choice": choice.get("summary"), "validation": {"rmse_axis": chosen["validation_rmse"],
+                                                                    "how": "views left out of the fit"}}
+    curve = cal.diagnostics.get("smoothing_curve") or []
+    used = cal.settings.get("intervals_used")
+    chosen = next((c for c in curve if c.get("intervals") == used and not c.get("skipped")), None)
+    if chosen and chosen.get("cv") is not None:
+        return {"validation": {"mse": chosen["cv"], "how": "knot grid chosen on views left out (px²)"}}
+    return {}
 
 
 def compare_summary(result: dict[str, Any]) -> dict[str, Any]:

@@ -11,6 +11,7 @@ from calib_core import Observations, calibrate
 from calib_core.errors import DataError
 
 from ..base.context import Context
+from ..base.repository.jobs import split_settings
 from . import artefacts
 from .lease import JobRun
 
@@ -29,10 +30,18 @@ def load_input(ctx: Context, job: dict[str, Any]) -> Observations:
     return Observations.load(path)
 
 
+def without(obs: Observations, exclude: list[str]) -> Observations:
+    """The observations less the views the user left out (names of images that gave no view are no matter)."""
+    if not exclude:
+        return obs
+    gone = set(exclude)
+    return obs.select([v.name for v in obs.views if v.name not in gone])
+
+
 def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     run.progress("load", 0.0)
-    obs = load_input(ctx, job)
-    settings = dict(job["settings"])
+    settings, exclude = split_settings(job["settings"])
+    obs = without(load_input(ctx, job), exclude)
     out = ctx.storage.job_dir(job["id"])
     if job["method"] == COMPARE:
         from calib_core.evaluation.compare import compare
@@ -47,6 +56,8 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
         names = artefacts.write_comparison(out, result, obs, best)
         return {"artefacts": names, "summary": artefacts.compare_summary(result)}
     cal = calibrate(obs, job["method"], progress=lambda s, f: run.progress(s, f, 0.0, 0.97), **settings)
+    if exclude:
+        cal.diagnostics["excluded_views"] = exclude   # in calibration.json: the views the user left out
     run.progress("metrics", 0.0, 0.97, 1.0)
     names = artefacts.write_calibration(out, cal, obs)
-    return {"artefacts": names, "summary": artefacts.summary(cal)}
+    return {"artefacts": names, "summary": artefacts.summary(cal, len(exclude))}

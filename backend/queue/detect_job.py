@@ -25,7 +25,8 @@ BATCHES = 8             # status updates per set; each batch still runs on every
 
 def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     from calib_core.board import BoardSpec
-    from calib_core.detection.detect import detect_images
+    from calib_core.detection.board_size import suggest_size
+    from calib_core.detection.detect import detect_images, none_found
 
     set_id = job["set_id"]
     row = sets.get(ctx.db, set_id)
@@ -63,17 +64,39 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
         sets.record_reports(ctx.db, set_id, reports)
         run.progress("detect", (start + len(batch)) / len(names))
     coverage, warning = measure_coverage(views, image_size)
-    warnings = [w for w in warnings if not w.startswith("no corners in the ")]  # per batch: superseded
+    # per batch, superseded by the set's own: coverage, the board found in none, images rejected
+    per_batch = ("no corners in the ", " was found in none of the ", " images rejected (see the report")
+    warnings = [w for w in warnings if not any(b in w for b in per_batch)]
     if warning:
         warnings.append(warning)
+    rejected = len(names) - len(views)
+    if views and rejected:
+        warnings.append(f"{rejected} of {len(names)} photos gave no corners (each says why)")
+    run.progress("board size", 0.0)
+    size_found = suggest_size(board, views, len(names), [folder / n for n in names])
+    suggestion = record_suggestion(ctx, set_id, board, size_found, len(names))
+    if suggestion and views:
+        warnings.append(suggestion["message"])
     sets.record_detection(ctx.db, set_id, None if image_size is None else list(image_size), coverage,
                           warnings, len(views))
     if not views:
-        raise DataError("the board was found in none of the images: check the board spec "
-                        "(inner corners, e.g. chessboard:9x6:25mm) and the image focus")
+        raise DataError(none_found(board, len(names)) + (f"; {suggestion['message']}" if suggestion else ""))
     obs = Observations(image_size, views, board.to_json())
     storage.write_json(ctx.storage.observations_path(set_id), obs.to_json())
     return {"artefacts": ["observations.json"], "summary": {"n_views": len(views), "n_images": len(names)}}
+
+
+def record_suggestion(ctx: Context, set_id: str, board: Any, found: Any, n_images: int) -> dict[str, Any] | None:
+    """Store (or clear) the board size the photos suggest, as the set shows it (``SetPublic.board_suggestion``)."""
+    path = ctx.storage.board_suggestion_path(set_id)
+    if found is None:
+        path.unlink(missing_ok=True)
+        return None
+    doc = {"spec": found.board(board).to_spec(), "cols": found.cols, "rows": found.rows,
+           "n_photos": found.n_photos, "n_images": n_images,
+           "message": f"{found.message(board)}: detect again with {found.cols} × {found.rows}"}
+    storage.write_json(path, doc)
+    return doc
 
 
 def _report(r: Any) -> dict[str, Any]:

@@ -22,15 +22,37 @@ log = logging.getLogger("freecal.worker")
 RUNNERS = {"detect": detect_job.run, "calibrate": calibrate_job.run}
 
 
-def execute(ctx: Context, job_id: str) -> None:
+def execute(ctx: Context, job_id: str) -> list[str]:
+    """Run the job; returns the ids of jobs to send to the queue now (the calibrations a
+    finished detection released)."""
+    job = jobs.get(ctx.db, job_id)
+    if job is None or _waits_for_detection(ctx, job):
+        return []
     attempt = jobs.claim(ctx.db, job_id, WORKER_ID)
     if attempt is None:
-        return  # cancelled, deleted, or already taken by another worker
-    job = jobs.get(ctx.db, job_id)
-    if job is None:
-        return
+        return []  # cancelled, deleted, or already taken by another worker
     log.info("job %s (%s) attempt %d started", job_id, job["kind"], attempt)
-    job_process.supervise(ctx, job_id, attempt)
+    try:
+        job_process.supervise(ctx, job_id, attempt)
+    finally:
+        released = jobs.queued_on_set(ctx.db, job["set_id"]) if job["kind"] == "detect" and job["set_id"] else []
+    return released
+
+
+def _waits_for_detection(ctx: Context, job: dict) -> bool:
+    """A calibration of a set whose detection has not ended stays queued (the detection's end sends it
+    again); one whose detection failed or was cancelled fails, saying why."""
+    if job["kind"] != "calibrate" or not job["set_id"] or job["state"] != "queued":
+        return False
+    detection = jobs.latest_detection(ctx.db, job["set_id"])
+    if detection is None or detection["state"] == "done":
+        return False
+    if detection["state"] in jobs.ACTIVE:
+        return True
+    why = f" ({detection['error']})" if detection["error"] else ""
+    jobs.fail_queued(ctx.db, job["id"], f"the set's corner detection {detection['state']}{why}, so there was "
+                                        "nothing to calibrate: fix the board's size or the photos, and run again")
+    return True
 
 
 def run_claimed(ctx: Context, job_id: str, attempt: int) -> None:

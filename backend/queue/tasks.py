@@ -43,6 +43,8 @@ def build_queue(ctx: Context) -> Queue:
     def run(job_id: str) -> None:
         from .execute import execute  # calib_core loads only where jobs run
 
-        execute(ctx, job_id)
+        for released in execute(ctx, job_id):  # calibrations that waited for this detection
+            queue.enqueue(released)
 
-    return Queue(huey, run)
+    queue = Queue(huey, run)
+    return queue

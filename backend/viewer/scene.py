@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from calib_core.report.distortion import distortion_maps
+
 from . import colormap
 from .data import JobResult
 
@@ -133,18 +135,19 @@ def set_component(built: Built, component: str) -> None:
 
 
 def _add_field(scene: Any, built: Built, cal: Any, w: int, h: int, component: str) -> None:
-    """The Fig. 13 surfaces: Δx and Δy over the ideal image, side by side below the rig."""
+    """The Fig. 13 surfaces: Δx and Δy over the image, side by side below the rig."""
     import trimesh
 
     nu, nv = FIELD_GRID
     u, v = np.meshgrid(np.linspace(0, w - 1, nu), np.linspace(0, h - 1, nv))
-    ideal = np.column_stack([u.ravel(), v.ravel()])
-    with np.errstate(all="ignore"):
-        delta = cal.distort(ideal) - ideal
+    # the same data and colour scale as the page's 2-D map (calib_core.report.distortion): the field's
+    # own part when there is a field over a core, else the offsets against the pinhole; values past
+    # the scale (the 98th percentile) saturate
+    doc = distortion_maps(cal, FIELD_GRID)
+    m = doc["maps"]["field" if "field" in doc["maps"] else "pinhole"]
+    delta = np.column_stack([np.array([np.nan if x is None else x for x in m[c]], float) for c in ("dx", "dy")])
     delta = np.where(np.isfinite(delta), delta, 0.0)
-    # scale by the 98th percentile, clipping the rest: an image corner without corners can
-    # extrapolate to hundreds of pixels and would flatten everything else
-    vabs = float(np.percentile(np.abs(delta), 98)) or 1.0
+    vabs = float(m["scale"])
     delta = np.clip(delta, -vabs, vabs)
     built.legend["field_max_px"] = vabs
     size_v = FIELD_SIZE * h / w

@@ -163,7 +163,7 @@ def _legend(result: data.JobResult, built: Built) -> str:
         f"**{result.method}**, {len(result.boards)} board poses" + (f", rmse {rmse:.3f} px" if rmse else ""),
         f"- corners and vectors: colour = |residual|, 0 to {lg.get('error_max_px', 0):.2f} px (95th percentile);"
         f" vectors ×{lg.get('vector_gain', 0):.0f}",
-        f"- surfaces: Δx, Δy (observed − ideal pixel), blue −{lg.get('field_max_px', 0):.1f} px … red "
+        f"- surfaces: Δx, Δy (the field's own part over its core, else observed − ideal pinhole pixel: the page's map), blue −{lg.get('field_max_px', 0):.1f} px … red "
         f"+{lg.get('field_max_px', 0):.1f} px (98th percentile; beyond it clipped)",
         "- orange lines: knot grid on the ideal image plane" if "/image_plane/knots" in built.handles
         else "- grey rectangle: the ideal image plane (no knots: not a B-spline method)",

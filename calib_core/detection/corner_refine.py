@@ -83,3 +83,13 @@ def saddle_fit(smooth: np.ndarray, pts: np.ndarray, half: np.ndarray) -> tuple[n
             p = p + step
         out[sel], det[sel] = p, dd
     return out, det
+
+
+def polish(gray: np.ndarray, pts: np.ndarray, half: np.ndarray, max_shift: float) -> tuple[np.ndarray, np.ndarray]:
+    """cornerSubPix then the saddle fit of corners pts (N, 2) with half-windows half (N,);
+    (polished (N, 2), kept (N,) bool): a corner is kept where the image is a saddle there
+    and the polish moved it at most ``max_shift`` px (further: the first estimate was on
+    something else, a marker's edge say, and the corner is dropped, not guessed)."""
+    refined = refine(gray, pts, half)
+    out, det = saddle_fit(smoothed(gray), refined, half)
+    return out, (det < 0) & (np.linalg.norm(out - pts, axis=1) <= max_shift)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import multiprocessing as mp
 import os
+import time
 from collections import Counter
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
@@ -22,7 +23,9 @@ from ..board import BoardSpec
 from ..errors import DataError
 from ..evaluation.coverage import coverage, coverage_warning
 from ..observations import Observations, View
-from .detect_image import ImageResult, detect_file
+from ..target import Target
+from .detect_image import MIN_CORNERS, ImageResult, detect_file
+from .targets import detect_target_file
 
 # What the command line and the service read (the service checks each one's header: backend/app/image_header.py)
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm", ".pbm", ".pnm")
@@ -37,6 +40,7 @@ class ImageReport:
     sharpness: float | None  # chessboard edge width in px (lower is sharper; < 3 is sharp), None if unknown
     width: int | None
     height: int | None
+    boards: list[dict] | None = None  # with a target: each board's name, corners, whether placed, why not
 
     def to_json(self) -> dict:
         return asdict(self)
@@ -73,7 +77,14 @@ def image_paths(items: Iterable[str | Path]) -> list[Path]:
     return out
 
 
-def detect_images(paths, board: BoardSpec, progress: Callable[[int, int], None] | None = None,
+# A pool's workers come from a fresh interpreter that imports OpenCV and the
+# detector (0.7 s of CPU on these machines) before the first image: a set this
+# process would detect faster alone than that start (26 VGA images: 0.45 s here,
+# 0.9-1.4 s through a pool of 2 that had to start first) is detected here.
+POOL_PAYS_AFTER = 1.5  # seconds of detection left after the first image
+
+
+def detect_images(paths, board: BoardSpec | Target, progress: Callable[[int, int], None] | None = None,
                   workers: int | None = None, calibration=None) -> Detection:
     """Detect ``board`` in every image of ``paths`` (files or folders).
 
@@ -82,7 +93,13 @@ def detect_images(paths, board: BoardSpec, progress: Callable[[int, int], None] 
     ``Calibration`` of this camera), every board corner is also predicted through
     its model from each view's pose and confirmed (``model_guided.py``);
     ``Detection.model_added`` says how many corners that added.
+
+    With a ``Target`` (several boards, ``freecal.target/1``), each image gives
+    one view of the object (3-D object points, target ids) and a planar view
+    ``IMAGE/BOARD`` per loose or undecided board (``targets.py``).
     """
+    if isinstance(board, Target) and calibration is not None:
+        raise DataError("re-detection through a calibration works on one board at a time, not on a target")
     files = image_paths([paths] if isinstance(paths, (str, Path)) else paths)
     names = _unique_names(files)
     model = None if calibration is None else calibration.model
@@ -111,34 +128,48 @@ def _unique_names(files: list[Path]) -> list[str]:
 
 
 def _run_all(files, names, board, progress, workers, model=None) -> list[ImageResult]:
+    """Every image's result, in order: on a pool of ``workers`` processes when
+    the set is large enough to pay for starting one (see POOL_PAYS_AFTER)."""
     total = len(files)
     n = workers if workers is not None else (os.cpu_count() or 1)
     n = max(1, min(n, total))
     results: list[ImageResult | None] = [None] * total
     done = 0
-    if n > 1:
+
+    def finished(k: int, result: ImageResult) -> None:
+        nonlocal done
+        results[k] = result
+        done += 1
+        if progress:
+            progress(done, total)
+
+    start = time.perf_counter()
+    fn, *job = _job(files[0], board, names[0], model)
+    finished(0, fn(*job))
+    alone = (time.perf_counter() - start) * (total - 1)  # the rest, detected here
+    if n > 1 and alone > POOL_PAYS_AFTER:
         try:
             with cf.ProcessPoolExecutor(n, mp_context=_context(), initializer=_init_worker) as pool:
-                futures = {pool.submit(detect_file, str(f), board, nm, model): k
-                           for k, (f, nm) in enumerate(zip(files, names, strict=True))}
+                futures = {pool.submit(*_job(files[k], board, names[k], model)): k for k in range(1, total)}
                 for fut in cf.as_completed(futures):
-                    k = futures[fut]
                     try:
-                        results[k] = fut.result()
+                        finished(futures[fut], fut.result())
                     except Exception:  # a dead worker: this image is retried in-process below
                         continue
-                    done += 1
-                    if progress:
-                        progress(done, total)
         except (OSError, PermissionError, NotImplementedError, cf.process.BrokenProcessPool, RuntimeError):
             pass  # no pool here (sandbox, no /dev/shm...): fall back to this process
-    for k, (f, nm) in enumerate(zip(files, names, strict=True)):
+    for k in range(total):
         if results[k] is None:
-            results[k] = detect_file(f, board, nm, model)
-            done += 1
-            if progress:
-                progress(done, total)
+            fn, *job = _job(files[k], board, names[k], model)
+            finished(k, fn(*job))
     return results  # type: ignore[return-value]
+
+
+def _job(path: Path, board: BoardSpec | Target, name: str, model) -> tuple:
+    """(function, its arguments) that detect ``board`` in one image file (in a worker)."""
+    if isinstance(board, Target):
+        return detect_target_file, str(path), board, name
+    return detect_file, str(path), board, name, model
 
 
 def _context():
@@ -153,7 +184,7 @@ def _context():
     methods = mp.get_all_start_methods()
     if "forkserver" in methods:
         ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(["calib_core.detection.detect_image"])
+        ctx.set_forkserver_preload(["calib_core.detection.detect_image", "calib_core.detection.targets"])
         return ctx
     return mp.get_context("spawn")
 
@@ -177,7 +208,7 @@ def _reject_odd_sizes(results: list[ImageResult]) -> None:
         if r.width is not None and (r.width, r.height) != (w, h):
             r.status = "rejected"
             r.reason = f"resolution differs from the set: {r.width}x{r.height}, the others are {w}x{h}"
-            r.ids = r.points = None
+            r.ids = r.points = r.boards = None
 
 
 def _image_size(result: ImageResult) -> tuple[int, int]:
@@ -187,24 +218,63 @@ def _image_size(result: ImageResult) -> tuple[int, int]:
     return result.width, result.height
 
 
-def _view(result: ImageResult, board: BoardSpec) -> View:
-    """A used image's corners as a view of ``board``."""
-    if result.ids is None or result.points is None:
-        raise ValueError(f"{result.name}: {result.status} image has no corners")
-    return View(result.name, board.object_points(result.ids), result.points, result.ids)
+def _views(result: ImageResult, board: BoardSpec | Target) -> list[View]:
+    """A used image's corners as views of ``board``: one, or with a target the object's
+    view and a planar view per board kept on its own."""
+    if isinstance(board, BoardSpec):
+        if result.ids is None or result.points is None:
+            raise ValueError(f"{result.name}: {result.status} image has no corners")
+        return [View(result.name, board.object_points(result.ids), result.points, result.ids)]
+    views = []
+    if result.ids is not None and result.points is not None:
+        views.append(View(result.name, board.object_points(result.ids), result.points, result.ids))
+    for hit in result.boards or []:
+        if not hit.placed and hit.ids is not None and hit.points is not None and hit.n_corners >= MIN_CORNERS:
+            spec = board.boards[hit.board].spec if hit.board is not None else _size_spec(board, hit.label)
+            views.append(View(f"{result.name}/{hit.label}", spec.object_points(hit.ids), hit.points, hit.ids))
+    return views
 
 
-def _assemble(results: list[ImageResult], board: BoardSpec) -> Detection:
-    reports = [ImageReport(r.name, r.status, r.n_corners, r.reason, r.sharpness, r.width, r.height) for r in results]
+def none_found(board: BoardSpec, n_images: int) -> str:
+    """Why a detection found nothing, in words that fit the page and the command line alike."""
+    if board.type == "chessboard":
+        what = f"the chessboard of {board.cols} × {board.rows} inner corners"
+        hint = "check the board's size (inner corners, where four squares meet, not squares) and the photos' focus"
+    elif board.type == "charuco":
+        what = f"the ChArUco board of {board.cols} × {board.rows} squares ({board.dictionary})"
+        hint = "check the board's size (squares), its marker dictionary and the photos' focus"
+    else:
+        what = f"the board ({board.to_spec()})"
+        hint = "check the board's spec and the photos' focus"
+    return f"{what} was found in none of the {n_images} photos: {hint}"
+
+
+def _size_spec(target: Target, label: str) -> BoardSpec:
+    """The spec of the chessboards of an undecided hit's size ("chessboard 9x6 #2")."""
+    size = label.split()[1]
+    return next(b.spec for b in target.boards if b.spec.type == "chessboard" and f"{b.spec.cols}x{b.spec.rows}" == size)
+
+
+def _report(r: ImageResult) -> ImageReport:
+    boards = None if r.boards is None else [h.to_json() for h in r.boards]
+    return ImageReport(r.name, r.status, r.n_corners, r.reason, r.sharpness, r.width, r.height, boards)
+
+
+def _assemble(results: list[ImageResult], board: BoardSpec | Target) -> Detection:
+    reports = [_report(r) for r in results]
     used = [r for r in results if r.status == "used"]
     warnings: list[str] = []
     if not used:
-        warnings.append(f"the board ({board.to_spec()}) was found in none of the {len(results)} images; "
-                        "check the board spec (inner corners for a chessboard) and the images")
+        warnings.append(none_found(board, len(results)) if isinstance(board, BoardSpec) else
+                        f"no board of the target ({board.describe()}) was found in any of the {len(results)} photos: "
+                        "check the target file and the photos' focus")
         return Detection(None, reports, {}, warnings)
     size = _image_size(used[0])
-    views = [_view(r, board) for r in used]
-    obs = Observations(size, views, board.to_json())
+    views = [v for r in used for v in _views(r, board)]
+    if isinstance(board, BoardSpec):
+        obs = Observations(size, views, board.to_json())
+    else:
+        obs = Observations(size, views, None, {"target": board.to_json()})
     cov = coverage(np.concatenate([v.image_points for v in views]), size)
     msg = coverage_warning(cov)
     if msg:

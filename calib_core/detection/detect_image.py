@@ -5,22 +5,31 @@ Chessboards: OpenCV's classic detector on the full pattern first (fast), then
 the sector-based one, then ``findChessboardCornersSBWithMeta`` with
 ``CALIB_CB_LARGER`` from a small seed, which grows over whatever part of the
 board is visible (partial boards). ChArUco: ``cv2.aruco.CharucoDetector``,
-whose ids are absolute, so partial boards come naturally.
+whose ids are absolute, so partial boards come naturally; AprilGrid: its tags'
+corners (``aprilgrid.py``). Markers are found once per image and dictionary
+(``markers.py``), so several boards of one image share them (``targets.py``).
 """
 from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
 from ..board import BoardSpec
+from . import aprilgrid, charuco
 from .grid import expand, gap_strides, lattice_score, place_grid
 from .grow import grow_board
+from .markers import Markers
 from .model_guided import model_guided
+
+if TYPE_CHECKING:
+    from .targets import BoardHit
 
 log = logging.getLogger("freecal.detect")
 
@@ -50,6 +59,7 @@ class ImageResult:
     ids: np.ndarray | None = None
     points: np.ndarray | None = None
     model_added: int | None = None   # corners the re-detection through a calibration added
+    boards: list[BoardHit] | None = None   # a target's boards, found or not (targets.py); ids/points: the object's
 
 
 def read_gray(path: str | Path) -> np.ndarray | None:
@@ -83,6 +93,11 @@ def detect_file(path: str | Path, board: BoardSpec, name: str | None = None, mod
     """Detect the board in one image file; every failure becomes a rejected result.
     With a camera ``model`` (a first calibration's), every board corner is also predicted
     through it and confirmed (``model_guided``)."""
+    return on_file(path, name, lambda gray: detect_gray(gray, board, model))
+
+
+def on_file(path: str | Path, name: str | None, detect: Callable[[np.ndarray], ImageResult]) -> ImageResult:
+    """``detect`` on the greyscale image of one file; every failure becomes a rejected result."""
     name = name or Path(path).name
     try:
         try:
@@ -91,7 +106,7 @@ def detect_file(path: str | Path, board: BoardSpec, name: str | None = None, mod
             return ImageResult(name, "rejected", 0, str(exc))
         if gray is None:
             return ImageResult(name, "rejected", 0, "could not decode the file as an image")
-        res = detect_gray(gray, board, model)
+        res = detect(gray)
         res.name = name
         return res
     except Exception as exc:  # a detector crash on one image must not cost the others
@@ -109,8 +124,13 @@ def failure_reason(exc: Exception) -> str:
             "re-save it as PNG or JPEG and upload it again")
 
 
-def detect_gray(gray: np.ndarray, board: BoardSpec, model=None) -> ImageResult:
-    """Detect in a greyscale image (H, W) uint8; ``model``: as in ``detect_file``."""
+def detect_gray(gray: np.ndarray, board: BoardSpec, model=None, markers: Markers | None = None,
+                classic_first: bool = True) -> ImageResult:
+    """Detect in a greyscale image (H, W) uint8; ``model``: as in ``detect_file``;
+    ``markers``: the image's markers, shared with other boards of the same image
+    (they must have been found on this image, reduced as here); ``classic_first``
+    false: chessboards skip OpenCV's classic detector (several boards in one image
+    hold it for seconds on the other boards' squares)."""
     # The sector-based detector draws from OpenCV's global RNG: reseed so a
     # result depends on the image alone, not on which images a worker saw before.
     cv2.setRNGSeed(0x5EED)
@@ -120,10 +140,15 @@ def detect_gray(gray: np.ndarray, board: BoardSpec, model=None) -> ImageResult:
     if h * w >= REDUCE_ABOVE:
         scale = float(np.sqrt(REDUCED_PIXELS / (h * w)))
         work = cv2.resize(gray, (round(w * scale), round(h * scale)), interpolation=cv2.INTER_AREA)
+    markers = markers if markers is not None and markers.gray.shape == work.shape else Markers(work)
     if board.type == "chessboard":
-        ids, pts, sharp, why = _chessboard(work, board)
+        ids, pts, sharp, why = _chessboard(work, board, classic_first)
+    elif board.type == "aprilgrid":
+        ids, pts, why = aprilgrid.detect(work, board, markers)
+        sharp = None
     else:
-        ids, pts, sharp, why = _charuco(work, board)
+        ids, pts, why = charuco.detect(work, board, markers)
+        sharp = None
     base = ImageResult("", "rejected", 0, why, None, w, h)
     if ids is None:
         return base
@@ -168,7 +193,7 @@ def detect_gray(gray: np.ndarray, board: BoardSpec, model=None) -> ImageResult:
     return base
 
 
-def _chessboard(gray: np.ndarray, board: BoardSpec):
+def _chessboard(gray: np.ndarray, board: BoardSpec, classic_first: bool = True):
     """(ids, points, edge width px, reason if none)."""
     cols, rows = board.cols, board.rows
     # The classic detector first: on whole boards it is ~100x faster than the sector-based
@@ -176,8 +201,8 @@ def _chessboard(gray: np.ndarray, board: BoardSpec):
     # exact corners: median 0.037 px either way). The sector-based one then takes the
     # boards it misses (blur, strong distortion), and grows partial boards.
     grid = None
-    ok, corners = cv2.findChessboardCorners(gray, (cols, rows), flags=CLASSIC_FLAGS)
-    if ok:
+    ok, corners = cv2.findChessboardCorners(gray, (cols, rows), flags=CLASSIC_FLAGS) if classic_first else (False, None)
+    if ok and corners is not None:
         corners = corners.reshape(-1, 2)
         half = _half_window(corners.reshape(rows, cols, 2))
         corners = cv2.cornerSubPix(gray, corners.astype(np.float32), (half, half), (-1, -1), SUBPIX)
@@ -192,8 +217,8 @@ def _chessboard(gray: np.ndarray, board: BoardSpec):
         return None, None, None, "board not found"
     placed = place_grid(grid.astype(np.float64), cols, rows, gray)
     if placed is None:
-        return None, None, None, (f"board not found: the grid found ({grid.shape[1]}x{grid.shape[0]} corners) "
-                                  f"is larger than the board ({cols}x{rows}); check --board")
+        return None, None, None, (f"board not found: the corner grid seen ({grid.shape[1]} × {grid.shape[0]}) "
+                                  f"does not fit a {cols} × {rows} board; is the board's size right (inner corners)?")
     sharp = _edge_width(gray, grid)
     return placed[0], placed[1], sharp, ""
 
@@ -241,16 +266,6 @@ def _edge_width(gray: np.ndarray, grid: np.ndarray) -> float | None:
         return None
     val = float(np.median(np.asarray(edges).reshape(len(edges), -1)[:, 2]))  # rows: x, y, width, min, max
     return val if np.isfinite(val) and val > 0 else None
-
-
-def _charuco(gray: np.ndarray, board: BoardSpec):
-    detector = cv2.aruco.CharucoDetector(board.cv_charuco())
-    corners, ids, _, marker_ids = detector.detectBoard(gray)
-    if marker_ids is None or len(marker_ids) == 0:
-        return None, None, None, f"board not found: no {board.dictionary} markers decoded"
-    if ids is None or len(ids) == 0:
-        return None, None, None, f"too few corners (0 found from {len(marker_ids)} markers, need at least {MIN_CORNERS})"
-    return ids.reshape(-1).astype(np.int64), corners.reshape(-1, 2).astype(np.float64), None, ""
 
 
 def _half_window(grid: np.ndarray) -> int:

@@ -29,10 +29,12 @@ from ..fitting.choice import Candidate, choose
 from ..fitting.crossval import folds
 from ..fitting.view_set import check_views
 from ..methods import METHODS
+from ..methods.common import Progress, named, no_progress, scaled
 from ..observations import Observations
 from ..pipeline import MIN_VIEWS, calibrate
 from . import quality
 from .evaluate import validation_residuals
+from .parameters import fitted_parameter_count
 
 DEFAULT_METHODS = ("zhang", "rational", "fisheye", "mls", "tps", "bspline")
 # The verdict's order of simplicity: parametric models by their number of
@@ -40,8 +42,6 @@ DEFAULT_METHODS = ("zhang", "rational", "fisheye", "mls", "tps", "bspline")
 SIMPLEST_FIRST = ("zhang", "fisheye", "rational", "bspline", "mls", "tps")
 STRUCTURE_P_VALUE = 0.01  # below this, the residuals are called spatially structured
 N_PERMUTATIONS = 200
-
-Progress = Callable[[str, float], None]
 
 
 def neighbour_correlation(residuals: np.ndarray, object_points: np.ndarray, view_index: np.ndarray,
@@ -139,19 +139,19 @@ def compare(observations: Observations, methods: list[str] | None = None, splits
     if holdout is not None and tuple(holdout.image_size) != tuple(observations.image_size):
         raise DataError("the hold-out views come from a camera with another image_size")
     check_views(observations)  # a degenerate set fails as a whole, before any method runs
-    progress = progress or (lambda stage, fraction: None)
+    progress = progress or no_progress
     out: dict[str, Any] = {"methods": {}, "n_views": n_views, "n_points": observations.n_points, "splits": splits}
     out["quality_raw"] = _quality(quality.raw_quality, observations)
     cv_residuals = {}
     for i, name in enumerate(methods):
-        progress(name, i / len(methods))
+        part = named(scaled(progress, i / len(methods), (i + 1) / len(methods)), name)
         entry: dict[str, Any] = {}
         try:
-            cal = calibrate(observations, name)
+            cal = calibrate(observations, name, scaled(part, 0.0, 0.5 if splits else 0.9))
             entry.update({key: cal.metrics[key] for key in ("rmse", "rmse_axis", "rmse_center", "rmse_edge", "n_points")})
             entry["views"] = [{"name": v.name, "rmse": v.rmse, "rmse_axis": v.rmse_axis, "n_points": v.n_points}
                               for v in cal.views]
-            entry["n_params"] = int(cal.model.n_params)
+            entry["n_params"] = fitted_parameter_count(cal.model)  # what the fit moved, not what the model could
             entry["quality"] = _quality(quality.geometric_quality, cal, observations)  # paper Table 7
             if holdout is not None:
                 r, data, _ = validation_residuals(cal, holdout)
@@ -159,6 +159,7 @@ def compare(observations: Observations, methods: list[str] | None = None, splits
                 entry.update({"holdout_rmse": s["rmse"], "holdout_rmse_axis": s["rmse_axis"],
                               "holdout_rmse_center": s["rmse_center"], "holdout_rmse_edge": s["rmse_edge"]})
             if splits:
+                part(f"cross-validation over {splits} splits", 0.5)
                 cv, cv_residuals[name] = _cross_validate(observations, name, splits)
                 entry["cv"] = cv
                 entry["cv_validation_rmse"] = cv["validation_rmse"]["mean"]

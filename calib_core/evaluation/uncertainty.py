@@ -79,6 +79,19 @@ def _embed(cov: np.ndarray, free: np.ndarray | None, n_params: int, n_extra: int
     return out
 
 
+def inlier_data(cal, obs) -> tuple[Data, np.ndarray]:
+    """The corners a calibration was fitted to (its views, outliers dropped) and its
+    poses (V, 6), in the solver's form: what its covariance is computed from."""
+    from ..pipeline import to_data
+
+    data, names, local = to_data(obs.select([v.name for v in cal.views]))
+    outliers = {(n, i) for n in names for i in cal.view(n).outliers}
+    if outliers:
+        keep = np.array([(names[k], int(i)) not in outliers for k, i in zip(data.view_index, local, strict=True)])
+        data = data.points(keep)
+    return data, np.array([cal.view(n).pose for n in names])
+
+
 def model_covariance(model: CameraModel, poses: np.ndarray, data: Data, sigma: float | None = None):
     """Cov(x̂_m) (n_m, n_m) of the model parameters, poses marginalised; with σ and the dof."""
     free = model.free_mask()  # the parameters the fit moved, as the solver asks for them
@@ -150,9 +163,12 @@ def _param_rows(cols: np.ndarray, vals: np.ndarray, n: int) -> np.ndarray:
 
 def projection_uncertainty(model, poses: np.ndarray, data: Data, image_size, step: float = 32.0,
                            sigma: float | None = None, coverage_radius: float | None = None,
-                           frame: str = "boards") -> UncertaintyMap:
+                           frame: str = "boards", covariance: tuple[np.ndarray, float, float] | None = None
+                           ) -> UncertaintyMap:
     """Per-pixel projection uncertainty on a grid of pixels ``step`` apart
-    (``frame``: "boards", mrcal-like, or "camera", see the module text)."""
+    (``frame``: "boards", mrcal-like, or "camera", see the module text).
+    ``covariance``: ``full_covariance``'s answer when the caller has it already
+    (frame "boards" only)."""
     w, h = image_size
     u = np.arange(0.0, w, step)
     v = np.arange(0.0, h, step)
@@ -166,7 +182,7 @@ def projection_uncertainty(model, poses: np.ndarray, data: Data, image_size, ste
     if frame == "camera":
         cov_x, sigma, dof = model_covariance(model, poses, data, sigma)
     elif frame == "boards":
-        cov_x, sigma, dof = full_covariance(model, poses, data, sigma)
+        cov_x, sigma, dof = covariance or full_covariance(model, poses, data, sigma)
     else:
         raise ValueError(f"frame: expected 'boards' or 'camera', got {frame!r}")
     if ok.any():
@@ -180,7 +196,9 @@ def projection_uncertainty(model, poses: np.ndarray, data: Data, image_size, ste
             jp = np.zeros((len(jv), 2, n_views, 6))
             jp[:, :, :, :3] = d_rot[:, :, None, :] / n_views
             jv = np.concatenate([jv, jp.reshape(len(jv), 2, 6 * n_views)], axis=2)
-        cov[ok] = np.einsum("gim,mn,gjn->gij", jv, cov_x, jv)
+        # (J C) then its rows against J: one BLAS product, not a three-operand
+        # einsum (which loops over all of g, i, j, m, n at once: seconds for a field)
+        cov[ok] = np.einsum("gin,gjn->gij", jv @ cov_x, jv)
     radius = coverage_radius if coverage_radius is not None else 1.5 * step
     dist = cKDTree(data.image_points).query(grid)[0]
     covered = (dist <= radius) & ok

@@ -9,6 +9,11 @@
    and the candidate's rays, and a short Kannala–Brandt refinement on a
    subsample scores it. The best one is refined on all points.
 
+A calibration object that is not one plane (several boards at known poses,
+a cube) is initialised the same way (``init_3d``): Zhang's candidate from the
+homographies of each face it shows in each view, every pose by PnP of the
+whole object on the candidate's rays.
+
 The result is a Kannala–Brandt camera (``FisheyeModel``) and poses: the
 starting point of every method.
 """
@@ -25,6 +30,7 @@ from ..errors import DataError
 from ..models import camera
 from ..models.base import CameraModel
 from ..models.fisheye import FisheyeModel
+from .init_3d import face_views, is_board_plane, pose_of_rays
 from .solve import Data, SolveSettings, levenberg_marquardt, spread_views
 
 MIN_POINTS_PER_VIEW = 6
@@ -41,7 +47,9 @@ class Initial:
 def zhang_focal(data: Data, image_size: tuple[int, int]) -> tuple[float, float] | None:
     """(fx, fy) from board homographies with the principal point at the image
     centre and no distortion (Zhang's constraints), or None when degenerate
-    (e.g. every view fronto-parallel)."""
+    (e.g. every view fronto-parallel). A calibration object of several planes
+    gives one homography per face seen in a view (``init_3d.face_views``)."""
+    data = face_views(data)
     w, h = image_size
     shift = np.array([[1.0, 0, -(w - 1) / 2], [0, 1.0, -(h - 1) / 2], [0, 0, 1.0]])
     rows, rhs = [], []
@@ -85,7 +93,9 @@ def _onto_axis(directions: np.ndarray) -> np.ndarray:
 
 def poses_from_rays(model: CameraModel, data: Data) -> np.ndarray | None:
     """A pose per view from the homography between the board plane and the
-    model's rays of the observed corners; None if some view cannot be posed.
+    model's rays of the observed corners (a view whose object points are not
+    all on Z = 0, of a 3-D calibration object: by PnP of the whole object on
+    the rays); None if some view cannot be posed.
 
     Each view's rays are first turned about the camera centre so that their
     mean is the optical axis: a board seen far off axis (a fisheye's edge,
@@ -102,12 +112,19 @@ def poses_from_rays(model: CameraModel, data: Data) -> np.ndarray | None:
     usable = finite & (rays[:, 2] > 0.2)
     order = np.argsort(data.view_index, kind="stable")
     starts = np.searchsorted(data.view_index[order], np.arange(data.n_views + 1))
-    homographies, centroids = np.zeros((data.n_views, 3, 3)), np.zeros((data.n_views, 3))
+    homographies, centroids = np.tile(np.eye(3), (data.n_views, 1, 1)), np.zeros((data.n_views, 3))
+    solid: dict[int, np.ndarray] = {}  # views of a 3-D object: their pose by PnP, in the turned frame
     for k in range(data.n_views):  # one homography per view (OpenCV's, not vectorisable)
         m = order[starts[k] : starts[k + 1]]
         m = m[usable[m]]
         if len(m) < 4:
             return None
+        if not is_board_plane(data.object_points[m]):
+            pose = pose_of_rays(data.object_points[m], rays[m])
+            if pose is None:
+                return None
+            solid[k] = pose
+            continue
         # Board coordinates about the observed centroid: better conditioned,
         # and the centroid must land in front of the camera.
         centroids[k] = data.object_points[m].mean(axis=0)
@@ -128,6 +145,9 @@ def poses_from_rays(model: CameraModel, data: Data) -> np.ndarray | None:
     poses = np.zeros((data.n_views, 6))
     poses[:, :3] = Rotation.from_matrix(back @ rot).as_rotvec()
     poses[:, 3:] = np.einsum("kij,kj->ki", back, t - np.einsum("kij,kj->ki", rot, centroids))
+    for k, pose in solid.items():
+        poses[k, :3] = Rotation.from_matrix(back[k] @ Rotation.from_rotvec(pose[:3]).as_matrix()).as_rotvec()
+        poses[k, 3:] = back[k] @ pose[3:]
     return poses
 
 
@@ -142,11 +162,6 @@ def _subsample(data: Data, max_views: int, per_view: int, rng: np.random.Generat
         per_view_picks.append(idx if len(idx) <= per_view else np.sort(rng.choice(idx, per_view, replace=False)))
     keep = np.concatenate(per_view_picks)
     return data.points(keep)
-
-
-def check_planar(data: Data) -> None:
-    if np.any(np.abs(data.object_points[:, 2]) > 1e-9 * max(1.0, np.abs(data.object_points).max())):
-        raise DataError("object_points: the initialisation needs a planar board (Z = 0 for every point)")
 
 
 # Kannala–Brandt coefficients of the pinhole projection: tan θ = θ (1 + θ²/3 + 2θ⁴/15 + 17θ⁶/315 + …).
@@ -192,7 +207,6 @@ def _initialise(data: Data, image_size: tuple[int, int], n_coefficients: int) ->
     Each candidate is scored after fitting only its focal lengths and the poses
     (its shape held): a small, well-posed problem. The best is then refined with
     every parameter free, first on a subsample and then on all points."""
-    check_planar(data)
     counts = np.bincount(data.view_index, minlength=data.n_views)
     if np.any(counts < MIN_POINTS_PER_VIEW):
         bad = int(np.argmin(counts))

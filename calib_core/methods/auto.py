@@ -32,7 +32,7 @@ from ..fitting.crossval import linearised_view_errors
 from ..fitting.init import initialise
 from ..fitting.solve import Data, spread_views
 from .bspline import BSplineSettings, fit_core, fit_field, ideal_samples
-from .common import Fit, Progress, no_progress, scaled
+from .common import Fit, Progress, named, no_progress, scaled
 
 
 @dataclass
@@ -86,7 +86,8 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
     if sample is not data:  # the chosen model on every view, with the grid and smoothing the choice found
         grid = {} if spec.field is None else {"intervals": tuple(fit.settings["intervals_used"]),
                                               "lambda_smooth": float(fit.settings["lambda_smooth"])}
-        fit = _fit_spec(spec, data, image_size, {}, scaled(progress, share, 1.0), **grid)
+        part = named(scaled(progress, share, 1.0), f"{spec.label}, on all {data.n_views} views")
+        fit = _fit_spec(spec, data, image_size, {}, part, **grid)
     settings = {**fit.settings, "chosen": spec.name, "decision_views": s.decision_views}
     return dataclasses.replace(fit, settings=settings, diagnostics={**fit.diagnostics, "model_choice": choice.to_json()})
 
@@ -121,7 +122,7 @@ def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
         for i, spec in enumerate(specs):
             if i in background:
                 continue
-            part = scaled(progress, i / len(specs), (i + 1) / len(specs))
+            part = named(scaled(progress, i / len(specs), (i + 1) / len(specs)), spec.label)
             if spec.core not in cores:
                 cores[spec.core] = _try(why_not, i, fit_core, sample, image_size, spec.core, part, cores.get("zhang"))
             if cores[spec.core] is None:
@@ -129,6 +130,8 @@ def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
                 continue
             fits[i] = _try(why_not, i, _fit_spec, spec, sample, image_size, cores, part)
         for i, future in background.items():
+            if not future.done():
+                progress(f"{specs[i].label}: finishing (fitted alongside the others)", 1.0)
             fits[i] = future.result()
     return fits, why_not
 

@@ -23,6 +23,14 @@ def scaled(progress: Progress, lo: float, hi: float) -> Progress:
     return lambda stage, fraction: progress(stage, lo + (hi - lo) * fraction)
 
 
+def named(progress: Progress, label: str) -> Progress:
+    """``progress`` for the work of one candidate model or method among several:
+    its stages carry its name ("Kannala-Brandt model: initialise"), so that five
+    "initialise" in a row say which model each one starts. A nested run's "done"
+    (``calibrate`` ends with it) becomes "finished": the run around it goes on."""
+    return lambda stage, fraction: progress(f"{label}: {'finished' if stage == 'done' else stage}", fraction)
+
+
 @dataclass
 class Fit(Generic[ModelT_co]):
     """A fitted model and poses, the points it could not use, and what to record."""

@@ -15,26 +15,37 @@ from typing import Any
 import numpy as np
 
 from ..calibration import Calibration, json_safe
+from ..errors import DataError
+from ..evaluation.parameters import fitted_parameter_count
+from ..evaluation.view_flags import view_flags
 from ..exports import opencv_yaml
 from ..observations import Observations
+from .distortion import distortion_maps
 
 HEATMAP_CELLS = (16, 12)   # columns, rows over the image
-FIELD_SAMPLES = (17, 13)   # distortion field sample grid (u, v)
+FIELD_SAMPLES = (33, 25)   # distortion field sample grid (u, v)
 UNCERTAINTY_STEP = 32.0    # px between the uncertainty map's samples
 
 
 def report_files(cal: Calibration, obs: Observations) -> dict[str, Any]:
     """File name → content (str for text, anything else as JSON) of every
     product of one calibration."""
+    if "camera" not in cal.diagnostics:  # the parameters' table the page leads with, in the calibration itself
+        cal.diagnostics["camera"] = camera(cal, obs)
     corners = corner_residuals(cal, obs)
-    views = view_residuals(cal, corners)
+    files = calibration_files(cal, with_flags(view_residuals(cal, corners), view_flags(cal, obs)))
+    files["corner_residuals.json"] = corners
+    files["corner_residuals.csv"] = to_csv(corners)
+    files["heatmap.json"] = heatmap(corners, cal.image_size)
+    return files
+
+
+def calibration_files(cal: Calibration, views: list[dict[str, Any]]) -> dict[str, Any]:
+    """The products the calibration alone gives (``views``: its per-view rows)."""
     files: dict[str, Any] = {
         "calibration.json": cal.to_json(),
-        "corner_residuals.json": corners,
-        "corner_residuals.csv": to_csv(corners),
         "view_residuals.json": views,
         "view_residuals.csv": to_csv(views),
-        "heatmap.json": heatmap(corners, cal.image_size),
         "distortion_field.json": distortion_field(cal),
     }
     knots = knot_grid(cal)
@@ -44,10 +55,51 @@ def report_files(cal: Calibration, obs: Observations) -> dict[str, Any]:
     if yaml is not None:
         files["opencv.yaml"] = yaml
     row = {"method": cal.method, **{k: v for k, v in cal.metrics.items() if _scalar(v)},
-           "seconds": cal.diagnostics.get("solver", {}).get("seconds")}
+           "n_params": fitted_parameter_count(cal.model), "seconds": cal.diagnostics.get("solver", {}).get("seconds")}
     files["comparison.json"] = {"rows": [row]}
     files["comparison.csv"] = to_csv([row])
     return files
+
+
+def report_products(cal: Calibration, obs: Observations | None = None) -> dict[str, Any]:
+    """Everything the report shows (``freecal calibrate --report``, ``freecal report``):
+    ``report_files``, the products the service computes on request (knot cells, the
+    uncertainty map), the parameters with their standard deviations and the coverage
+    of the image. Without ``obs`` (the corners), only what the calibration alone gives."""
+    from ..evaluation.parameters import describe_without_corners
+
+    if obs is None:
+        products = calibration_files(cal, view_residuals(cal, []))
+        products["parameters.json"] = describe_without_corners(cal)
+    else:
+        obs = fitted_corners(cal, obs)
+        products = report_files(cal, obs)
+        products["knot_cells.json"] = knot_cells(cal, products["corner_residuals.json"])
+        products["uncertainty.json"] = uncertainty_map(cal, obs)
+        products["coverage.json"] = coverage_of(obs)
+        products["parameters.json"] = cal.diagnostics["camera"]
+    return {name: content for name, content in products.items() if content is not None}
+
+
+def fitted_corners(cal: Calibration, obs: Observations) -> Observations:
+    """The views of ``obs`` the calibration was fitted to; a DataError if ``obs`` is not where it came from."""
+    if tuple(obs.image_size) != tuple(cal.image_size):
+        raise DataError(f"the observations are of a {obs.image_size[0]} x {obs.image_size[1]} image, the calibration "
+                        f"of a {cal.image_size[0]} x {cal.image_size[1]} one: give the observations it was fitted to")
+    have = {v.name for v in obs.views}
+    missing = [v.name for v in cal.views if v.name not in have]
+    if missing:
+        raise DataError(f"the observations lack {len(missing)} of the calibration's {len(cal.views)} views "
+                        f"(e.g. {missing[0]!r}): give the observations it was fitted to")
+    return obs.select([v.name for v in cal.views])
+
+
+def coverage_of(obs: Observations) -> dict[str, Any]:
+    """Where the corners fall in the image (``evaluation.coverage``), with the image size."""
+    from ..evaluation.coverage import coverage
+
+    points = np.concatenate([v.image_points for v in obs.views]) if obs.views else np.zeros((0, 2))
+    return {**coverage(points, obs.image_size), "image_size": list(obs.image_size), "n_points": int(len(points))}
 
 
 def corner_residuals(cal: Calibration, obs: Observations) -> list[dict[str, Any]]:
@@ -82,6 +134,19 @@ def view_residuals(cal: Calibration, corners: list[dict[str, Any]]) -> list[dict
              "max_error": worst.get(v.name), "outliers": len(v.outliers)} for v in cal.views]
 
 
+def with_flags(views: list[dict[str, Any]], flags: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The per-view rows with their curation figures (``evaluation.view_flags``): corners detected and kept,
+    the flags in words, and ``flagged`` (their codes, for the CSV)."""
+    by_name = {f["view"]: f for f in flags}
+    keys = ("n_detected", "n_kept", "outlier_share", "rmse_z", "structure", "structure_rms", "structure_z", "flags")
+    out = []
+    for row in views:
+        f = by_name.get(row["view"], {})
+        extra = {k: json_safe(f.get(k)) if k != "flags" else f.get(k, []) for k in keys}
+        out.append({**row, **extra, "flagged": " ".join(x["code"] for x in extra["flags"])})
+    return out
+
+
 def _inliers(corners: list[dict[str, Any]]) -> np.ndarray:
     """(N, 5) x, y, dx, dy, error of the inlier corners with a finite error."""
     rows = [(c["x"], c["y"], c["dx"], c["dy"], c["error"]) for c in corners
@@ -103,15 +168,16 @@ def heatmap(corners: list[dict[str, Any]], image_size: tuple[int, int]) -> dict[
 
 
 def distortion_field(cal: Calibration) -> dict[str, Any]:
-    """Samples of observed pixel → its offset from the ideal pinhole pixel (observed − ideal)."""
-    w, h = cal.image_size
-    nu, nv = FIELD_SAMPLES
-    u, v = np.meshgrid(np.linspace(0, w - 1, nu), np.linspace(0, h - 1, nv))
-    uv = np.column_stack([u.ravel(), v.ravel()])
-    d = uv - cal.undistort_points(uv)
-    return {"grid": [nu, nv], "image_size": [w, h], "u": json_safe(uv[:, 0]), "v": json_safe(uv[:, 1]),
-            "dx": json_safe(d[:, 0]), "dy": json_safe(d[:, 1]),
-            "note": "observed pixel minus its ideal pinhole pixel; null where the ray is 90 degrees or more off axis"}
+    """The distortion maps over the image (``distortion.distortion_maps``: against
+    the pinhole, the field's own part, the lens as angles; ``default`` the one
+    that reads on this lens), with the pinhole map's Δx, Δy also at the top
+    level (observed − ideal pinhole pixel), as earlier readers take them."""
+    doc = distortion_maps(cal, FIELD_SAMPLES)
+    pinhole = doc["maps"]["pinhole"]
+    doc.update(dx=pinhole["dx"], dy=pinhole["dy"],
+               note="observed pixel minus its ideal pinhole pixel; null where the ray is 90 degrees or more off "
+                    "axis; 'maps' holds every view of the lens, 'default' the one that reads on it")
+    return doc
 
 
 def knot_grid(cal: Calibration) -> dict[str, Any] | None:
@@ -148,19 +214,24 @@ def knot_cells(cal: Calibration, corners: list[dict[str, Any]]) -> dict[str, Any
             "positions": where, "corners": np.round(pos[ok], 2).tolist(), "type": grid["type"]}
 
 
+def camera(cal: Calibration, obs: Observations) -> dict[str, Any]:
+    """The calibration's ``diagnostics.camera``: the model in words, every
+    parameter ± one standard deviation, the field of view and the verdict
+    (``evaluation.parameters``), from the corners it was fitted to."""
+    from ..evaluation.parameters import describe_camera
+    from ..evaluation.uncertainty import inlier_data
+
+    data, poses = inlier_data(cal, obs)
+    return describe_camera(cal, data, poses)
+
+
 def uncertainty_map(cal: Calibration, obs: Observations, step: float = UNCERTAINTY_STEP) -> dict[str, Any]:
     """Projection uncertainty over a pixel grid (``evaluation.uncertainty``,
     boards frame), from the calibration's own views and inliers; σ is
     estimated from their residuals."""
-    from ..evaluation.uncertainty import projection_uncertainty
-    from ..pipeline import to_data
+    from ..evaluation.uncertainty import inlier_data, projection_uncertainty
 
-    data, names, local = to_data(obs.select([v.name for v in cal.views]))
-    outliers = {(n, i) for n in names for i in cal.view(n).outliers}
-    if outliers:
-        keep = np.array([(names[k], int(i)) not in outliers for k, i in zip(data.view_index, local, strict=True)])
-        data = data.points(keep)
-    poses = np.array([cal.view(n).pose for n in names])
+    data, poses = inlier_data(cal, obs)
     um = projection_uncertainty(cal.model, poses, data, cal.image_size, step=step)
     doc = um.to_json()
     doc.update(covered=um.covered.tolist(), image_size=list(cal.image_size), step=step,

@@ -28,6 +28,14 @@ the whole half-space in front of the camera (so the Newton inversion of
   centre 0.1 off the principal point, then the keystone of the element's
   tilt, a projective map about that centre (``decentred_distort``).
 
+And one lens past 180° (``WIDE_KINDS``), defined on the angle off the axis
+``θ = atan2(√(X² + Y²), Z)`` rather than on the pinhole plane:
+
+- ``fisheye200``: a circular fisheye seeing 100° off its axis all round,
+  Kannala–Brandt θd = θ (1 − 0.032 θ² + 0.002 θ⁴) (exactly the ``fisheye``
+  method's model): its training views are boards all round the camera, up to
+  and past its side (``protocol.py``), and ``render`` draws them.
+
 Their radial terms have OpenCV's positive sign, like the paper's: an
 expanding map, which stays one-to-one however far off axis (a negative k1
 folds back at r = 1/√(3|k1|), inside this field of view).
@@ -38,6 +46,7 @@ Gaussian, σ per axis. Hold-out views are noise-free views of a much larger
 board that together cover the whole image, corners included.
 """
 from .lenses import (
+    ALL_KINDS,
     DECENTRE,
     HOLDOUT_BOARD,
     IMAGE_SIZE,
@@ -49,17 +58,21 @@ from .lenses import (
     TILT,
     TRAIN_BOARD,
     TRUTH_FORMAT,
+    WIDE_HALF_FIELD_DEG,
+    WIDE_KINDS,
     asymmetric_offset,
     decentred_distort,
     direction_cosines,
     freeform_offset,
+    in_view,
     opencv_distort,
     true_distort,
     true_project,
+    true_rays,
 )
 from .protocol import SynthSet, board_points, generate, look_at_pose, pose_looking_at, shoot
 
-__all__ = ["DECENTRE", "HOLDOUT_BOARD", "IMAGE_SIZE", "INTRINSICS", "KINDS", "LENSES", "PAPER_KINDS", "SQUARE", "TILT",
+__all__ = ["ALL_KINDS", "WIDE_HALF_FIELD_DEG", "WIDE_KINDS", "in_view", "true_rays", "DECENTRE", "HOLDOUT_BOARD", "IMAGE_SIZE", "INTRINSICS", "KINDS", "LENSES", "PAPER_KINDS", "SQUARE", "TILT",
            "TRAIN_BOARD", "TRUTH_FORMAT", "SynthSet", "asymmetric_offset", "board_points", "decentred_distort",
            "direction_cosines", "freeform_offset", "generate", "look_at_pose", "pose_looking_at", "shoot", "opencv_distort", "true_distort",
            "true_project"]

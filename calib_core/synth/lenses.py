@@ -6,7 +6,13 @@ from __future__ import annotations
 import numpy as np
 
 PAPER_KINDS = ("radial", "fisheye", "asymmetric")  # the paper's Table 4 lenses
-KINDS = PAPER_KINDS + ("freeform", "decentred")
+KINDS = PAPER_KINDS + ("freeform", "decentred")    # lenses on the pinhole plane (less than 180°)
+# Lenses beyond 180°: defined on the angle off the axis, θ = atan2(√(X² + Y²), Z), so a point
+# behind the camera's plane (Z < 0) keeps its side of the image (formats.md, fisheye type).
+WIDE_KINDS = ("fisheye200",)
+ALL_KINDS = KINDS + WIDE_KINDS
+WIDE_K = (-0.032, 0.002)           # fisheye200: θd = θ (1 + k1 θ² + k2 θ⁴)
+WIDE_HALF_FIELD_DEG = 100.0        # ... seeing 100° off the axis all round: a 200° field, an image circle
 LENSES = {  # the truth's "lens": what each kind is, in a sentence
     "radial": "OpenCV's model, k1 = 0.05, k2 = 0.0267, k3 = 0.0067, p1 = 0.0067, p2 = 0.01 "
               "(exactly representable by --method zhang)",
@@ -18,6 +24,9 @@ LENSES = {  # the truth's "lens": what each kind is, in a sentence
                 "Zernike-like offset in the ray's direction cosines (different x/y barrel, trefoil, "
                 "quadrafoil, 5th-order anisotropic term, Gaussian bump; synth.freeform_offset): "
                 "no parametric model represents it",
+    "fisheye200": "a circular fisheye of 200 degrees: Kannala-Brandt theta_d = theta (1 - 0.032 theta^2 + "
+                  "0.002 theta^4) on theta = atan2(sqrt(X^2 + Y^2), Z), light up to 100 degrees off the axis "
+                  "(an image circle of about 490 px radius inside the frame); exactly --method fisheye's model",
     "decentred": "a decentred, tilted element: radial k1 = 0.065, k2 = 0.006 about a centre (0.08, -0.06) "
                  "off the principal point, then the tilt's keystone x/(1 + 0.03 x - 0.025 y) about that "
                  "centre (synth.decentred_distort): no parametric model represents it",
@@ -151,11 +160,57 @@ def true_distort(kind: str, x: np.ndarray) -> np.ndarray:
         return opencv_distort(x, 0.04, 0.004, 0, 0, 0) + freeform_offset(x)
     if kind == "decentred":
         return decentred_distort(x)
-    raise ValueError(f"unknown synthetic kind {kind!r}; expected one of {KINDS}")
+    if kind in WIDE_KINDS:  # in front of the camera's plane: θ = atan r
+        r = np.linalg.norm(x, axis=-1)
+        scale = np.where(r > 1e-12, wide_radius(np.arctan(r)) / np.maximum(r, 1e-12), 1.0)
+        return x * scale[:, None]
+    raise ValueError(f"unknown synthetic kind {kind!r}; expected one of {ALL_KINDS}")
+
+
+def wide_radius(theta: np.ndarray) -> np.ndarray:
+    """fisheye200's distorted radius θd (normalised) of angles θ off the axis."""
+    k1, k2 = WIDE_K
+    return theta * (1 + k1 * theta**2 + k2 * theta**4)
+
+
+def in_view(kind: str, pc: np.ndarray) -> np.ndarray:
+    """(N,) bool: camera-frame points (N, 3) the lens takes light from (in front of a pinhole-plane
+    lens; within a wide lens's field, behind the camera's plane too)."""
+    if kind in WIDE_KINDS:
+        theta = np.arctan2(np.hypot(pc[:, 0], pc[:, 1]), pc[:, 2])
+        return theta <= np.radians(WIDE_HALF_FIELD_DEG)
+    return pc[:, 2] > 1e-6
 
 
 def true_project(kind: str, pc: np.ndarray) -> np.ndarray:
-    """Pixels (N, 2) of camera-frame points (N, 3) through the true lens."""
+    """Pixels (N, 2) of camera-frame points (N, 3) through the true lens (``in_view`` points)."""
     fx, fy, cx, cy = INTRINSICS
-    xd = true_distort(kind, pc[:, :2] / pc[:, 2:])
+    if kind in WIDE_KINDS:
+        rho = np.hypot(pc[:, 0], pc[:, 1])
+        theta = np.arctan2(rho, pc[:, 2])
+        scale = np.where(rho > 1e-12, wide_radius(theta) / np.maximum(rho, 1e-300), 1.0 / np.maximum(pc[:, 2], 1e-300))
+        xd = pc[:, :2] * scale[:, None]
+    else:
+        xd = true_distort(kind, pc[:, :2] / pc[:, 2:])
     return np.stack([fx * xd[:, 0] + cx, fy * xd[:, 1] + cy], axis=-1)
+
+
+def true_rays(kind: str, pixels: np.ndarray) -> np.ndarray:
+    """Unit rays (N, 3) of pixels (N, 2) through a wide lens (NaN outside its image circle):
+    θ from θd by Newton's method (θd(θ) rises monotonically over the field)."""
+    if kind not in WIDE_KINDS:
+        raise ValueError(f"true_rays is for the lenses past 180° ({WIDE_KINDS}); got {kind!r}")
+    fx, fy, cx, cy = INTRINSICS
+    xd = (pixels - [cx, cy]) / [fx, fy]
+    thd = np.hypot(xd[:, 0], xd[:, 1])
+    theta = thd.copy()
+    k1, k2 = WIDE_K
+    for _ in range(30):
+        step = (wide_radius(theta) - thd) / (1 + 3 * k1 * theta**2 + 5 * k2 * theta**4)
+        theta -= step
+        if np.all(np.abs(step) < 1e-14):
+            break
+    phi = np.arctan2(xd[:, 1], xd[:, 0])
+    rays = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=-1)
+    rays[theta > np.radians(WIDE_HALF_FIELD_DEG)] = np.nan
+    return rays

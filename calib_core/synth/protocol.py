@@ -10,16 +10,20 @@ from scipy.spatial.transform import Rotation
 
 from ..observations import Observations, View
 from .lenses import (
+    ALL_KINDS,
     HOLDOUT_BOARD,
     IMAGE_SIZE,
     INTRINSICS,
-    KINDS,
     LENSES,
     SQUARE,
     TRAIN_BOARD,
     TRUTH_FORMAT,
+    WIDE_KINDS,
+    in_view,
     true_project,
 )
+
+MAX_INCIDENCE_DEG = 80.0   # a board corner seen more obliquely than this is too foreshortened to detect
 
 
 def board_points(cols: int, rows: int, square: float = SQUARE) -> np.ndarray:
@@ -42,15 +46,22 @@ def look_at_pose(eye: np.ndarray, target: np.ndarray, roll: float) -> np.ndarray
 
 
 def _visible(kind: str, pose: np.ndarray, pts: np.ndarray, margin: float = 0.0):
-    pc = Rotation.from_rotvec(pose[:3]).apply(pts) + pose[3:]
-    ok = pc[:, 2] > 1e-6
+    rot = Rotation.from_rotvec(pose[:3])
+    pc = rot.apply(pts) + pose[3:]
+    ok = in_view(kind, pc)
     uv = np.full((len(pts), 2), np.nan)
     uv[ok] = true_project(kind, pc[ok])
     w, h = IMAGE_SIZE
-    # Keep corners seen at most ~80° off axis: a real board corner further out
-    # is too foreshortened to detect.
-    cos_angle = pc[:, 2] / np.linalg.norm(pc, axis=1)
-    ok &= (cos_angle > np.cos(np.radians(80))) & np.all(np.isfinite(uv), axis=1)
+    if kind in WIDE_KINDS:
+        # Past 90° off the axis a board faces the camera sideways: keep the corners it shows
+        # at most MAX_INCIDENCE_DEG from its normal.
+        normal = rot.apply([0.0, 0.0, 1.0])
+        cos_angle = np.abs(pc @ normal) / np.linalg.norm(pc, axis=1)
+    else:
+        # Keep corners seen at most ~80° off axis: a real board corner further out
+        # is too foreshortened to detect.
+        cos_angle = pc[:, 2] / np.linalg.norm(pc, axis=1)
+    ok &= (cos_angle > np.cos(np.radians(MAX_INCIDENCE_DEG))) & np.all(np.isfinite(uv), axis=1)
     ok &= (uv[:, 0] >= margin) & (uv[:, 0] <= w - 1 - margin) & (uv[:, 1] >= margin) & (uv[:, 1] <= h - 1 - margin)
     return ok, uv
 
@@ -72,6 +83,46 @@ def _train_poses(rng: np.random.Generator, n_views: int) -> np.ndarray:
         tilt = np.radians(rng.uniform(15, 35)) * np.array([np.cos(phi), np.sin(phi)]) if k else np.zeros(2)
         target = centre + np.array([*rng.uniform(-100, 100, size=2), 0.0])
         poses.append(pose_looking_at(target, rng.uniform(160, 220), tilt, rng.uniform(-0.5, 0.5)))
+    return np.array(poses)
+
+
+def facing(centre: np.ndarray, towards: np.ndarray, distance: float, tilt: np.ndarray, roll: float) -> np.ndarray:
+    """Pose (board → camera) of a board whose point ``centre`` lies ``distance`` mm along the unit
+    direction ``towards`` from the camera, the board facing the camera, then tilted (radians about its
+    x and y axes) and turned by ``roll`` about its normal: what a lens past 180° sees all round."""
+    x = np.cross([0.0, 1.0, 0.0] if abs(towards[1]) < 0.9 else [1.0, 0.0, 0.0], towards)
+    x /= np.linalg.norm(x)
+    face = np.column_stack([x, np.cross(towards, x), towards])          # board z away from the camera
+    r = face @ Rotation.from_rotvec([tilt[0], tilt[1], roll]).as_matrix()
+    return np.concatenate([Rotation.from_matrix(r).as_rotvec(), towards * distance - r @ centre])
+
+
+def _direction(off_axis: float, azimuth: float) -> np.ndarray:
+    return np.array([np.sin(off_axis) * np.cos(azimuth), np.sin(off_axis) * np.sin(azimuth), np.cos(off_axis)])
+
+
+def _wide_train_poses(rng: np.random.Generator, n_views: int) -> np.ndarray:
+    """The large board facing the camera from all round, its centre up to 95° off the axis."""
+    cols, rows = TRAIN_BOARD
+    centre = np.array([(cols - 1) * SQUARE / 2, (rows - 1) * SQUARE / 2, 0.0])
+    poses = []
+    for k in range(n_views):
+        off_axis = np.radians(95.0) * np.sqrt((k + rng.uniform(0.2, 0.8)) / n_views)   # spread over the sphere's cap
+        azimuth = 2.39996 * k + rng.uniform(-0.3, 0.3)                                # golden angle
+        target = centre + np.array([*rng.uniform(-100, 100, 2), 0.0])
+        poses.append(facing(target, _direction(off_axis, azimuth), rng.uniform(220, 320),
+                            np.radians(rng.uniform(-30, 30, 2)), rng.uniform(-0.5, 0.5)))
+    return np.array(poses)
+
+
+def _wide_holdout_poses() -> np.ndarray:
+    """The huge board straight ahead, and facing the camera from 55° and 95° off its axis all round."""
+    cols, rows = HOLDOUT_BOARD
+    centre = np.array([(cols - 1) * SQUARE / 2, (rows - 1) * SQUARE / 2, 0.0])
+    poses = [facing(centre, np.array([0.0, 0.0, 1.0]), 400.0, np.zeros(2), 0.0)]
+    for off_axis in np.radians([55.0, 95.0]):
+        for a in np.radians(np.arange(0, 360, 45)):
+            poses.append(facing(centre, _direction(off_axis, a), 400.0, np.zeros(2), 0.15))
     return np.array(poses)
 
 
@@ -110,15 +161,18 @@ class SynthSet:
 
 def generate(kind: str = "radial", sigma: float = 0.3, seed: int = 0, n_views: int = 10) -> SynthSet:
     """Training (noisy), hold-out (noise-free, whole image) and the truth."""
-    if kind not in KINDS:
-        raise ValueError(f"unknown synthetic kind {kind!r}; expected one of {KINDS}")
+    if kind not in ALL_KINDS:
+        raise ValueError(f"unknown synthetic kind {kind!r}; expected one of {ALL_KINDS}")
     rng = np.random.default_rng(seed)
+    wide = kind in WIDE_KINDS
     cols, rows = TRAIN_BOARD
     board = {"type": "chessboard", "cols": cols, "rows": rows, "square_size": SQUARE, "units": "mm"}
-    train_views, train_poses = shoot(kind, _train_poses(rng, n_views), board_points(cols, rows), sigma, rng, "train_")
+    train = _wide_train_poses(rng, n_views) if wide else _train_poses(rng, n_views)
+    train_views, train_poses = shoot(kind, train, board_points(cols, rows), sigma, rng, "train_")
     hc, hr = HOLDOUT_BOARD
     hboard = {"type": "chessboard", "cols": hc, "rows": hr, "square_size": SQUARE, "units": "mm"}
-    hold_views, hold_poses = shoot(kind, _holdout_poses(), board_points(hc, hr), 0.0, rng, "holdout_")
+    hold = _wide_holdout_poses() if wide else _holdout_poses()
+    hold_views, hold_poses = shoot(kind, hold, board_points(hc, hr), 0.0, rng, "holdout_")
     fx, fy, cx, cy = INTRINSICS
     truth = {
         "format": TRUTH_FORMAT,

@@ -70,6 +70,26 @@ def _pixel_rays(kind: str, image_size: tuple[int, int]) -> tuple[np.ndarray, np.
     return x.reshape(h, w, 2), ok.reshape(h, w)
 
 
+def unit_rays(kind: str, image_size: tuple[int, int] = synth.IMAGE_SIZE) -> tuple[np.ndarray, np.ndarray]:
+    """Unit rays (H, W, 3) of every pixel centre and the mask (H, W) of the pixels the lens
+    covers; a lens past 180° (``synth.WIDE_KINDS``) has rays behind the camera's plane too."""
+    return _unit_rays(kind, tuple(int(n) for n in image_size))
+
+
+@functools.lru_cache(maxsize=4)
+def _unit_rays(kind: str, image_size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    w, h = image_size
+    if kind in synth.WIDE_KINDS:
+        v, u = np.mgrid[0:h, 0:w].astype(np.float64)
+        rays = synth.true_rays(kind, np.stack([u.ravel(), v.ravel()], axis=-1)).reshape(h, w, 3)
+        covered = np.all(np.isfinite(rays), axis=-1)
+        rays[~covered] = [0.0, 0.0, 1.0]
+        return rays, covered
+    xn, covered = pixel_rays(kind, image_size)
+    rays = np.concatenate([xn, np.ones(xn.shape[:2] + (1,))], axis=-1)
+    return rays / np.linalg.norm(rays, axis=-1, keepdims=True), covered
+
+
 def _coarse(n: int, stride: int = 4) -> np.ndarray:
     """Lattice 0, stride, ..., n-1 (both ends included)."""
     return np.unique(np.append(np.arange(0, n, stride), n - 1)).astype(np.float64)
@@ -127,11 +147,14 @@ def _invert_distortion(kind: str, target: np.ndarray) -> np.ndarray:
 
 
 def board_coordinates(rays: np.ndarray, pose: np.ndarray) -> np.ndarray:
-    """Board-plane points (H, W, 2), in mm, seen along normalised rays (H, W, 2) from
-    ``pose`` = [rvec | tvec] (board → camera); NaN where the ray misses the plane's front."""
+    """Board-plane points (H, W, 2), in mm, seen along rays from ``pose`` = [rvec | tvec]
+    (board → camera): normalised coordinates (H, W, 2) or directions (H, W, 3); NaN where
+    the ray misses the plane."""
     r = Rotation.from_rotvec(pose[:3]).as_matrix()
     centre = -r.T @ pose[3:]                                   # camera centre, board frame
-    d = np.concatenate([rays, np.ones(rays.shape[:2] + (1,))], axis=-1) @ r  # = R^T d, (H, W, 3)
+    if rays.shape[-1] == 2:
+        rays = np.concatenate([rays, np.ones(rays.shape[:2] + (1,))], axis=-1)
+    d = rays @ r                                               # = R^T d, (H, W, 3)
     s = -centre[2] / d[..., 2]
     s = np.where(s > 0, s, np.nan)
     return centre[:2] + s[..., None] * d[..., :2]
@@ -154,7 +177,7 @@ def render_view(kind: str, pose: np.ndarray, board: tuple[int, int] = synth.TRAI
                 rng: np.random.Generator | None = None, blur: float = BLUR_SIGMA,
                 noise: float = NOISE_SIGMA) -> np.ndarray:
     """8-bit greyscale image (H, W) of a cols × rows (inner corners) chessboard at ``pose``."""
-    rays, covered = pixel_rays(kind, (image_size[0], image_size[1]))
+    rays, covered = unit_rays(kind, (image_size[0], image_size[1]))
     b = board_coordinates(rays, np.asarray(pose, dtype=np.float64))  # (H, W, 2)
     b[~covered] = np.nan
     # Local Jacobian of the pixel → board map (central differences = the best affine fit
@@ -194,20 +217,20 @@ def true_corners(kind: str, pose: np.ndarray, board: tuple[int, int] = synth.TRA
                  margin: float = 2.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact, noise-free corners of a view: ids (N,), board points (N, 3), pixels (N, 2).
 
-    Keeps the corners in front of the camera, inside the image by ``margin`` px and
+    Keeps the corners the lens sees (``synth.in_view``), inside the image by ``margin`` px and
     inside the lens's coverage (unlike ``synth.generate``, no 80° cut: a detector may
     well find those).
     """
     cols, rows = board
     pts = synth.board_points(cols, rows, square)
     pc = Rotation.from_rotvec(pose[:3]).apply(pts) + pose[3:]
-    ok = pc[:, 2] > 1e-6
+    ok = synth.in_view(kind, pc)
     uv = np.full((len(pts), 2), np.nan)
     uv[ok] = synth.true_project(kind, pc[ok])
     w, h = image_size
     ok &= np.all(np.isfinite(uv), axis=1)
     ok &= (uv[:, 0] >= margin) & (uv[:, 0] <= w - 1 - margin) & (uv[:, 1] >= margin) & (uv[:, 1] <= h - 1 - margin)
-    _, covered = pixel_rays(kind, (image_size[0], image_size[1]))
+    _, covered = unit_rays(kind, (image_size[0], image_size[1]))
     ok[ok] &= covered[np.rint(uv[ok, 1]).astype(int), np.rint(uv[ok, 0]).astype(int)]
     ids = np.flatnonzero(ok)
     return ids, pts[ids], uv[ids]

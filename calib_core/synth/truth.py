@@ -15,6 +15,7 @@ import numpy as np
 from .. import synth
 from ..calibration import Calibration
 from ..errors import FormatError
+from ..models import camera
 from ..models.base import CameraModel
 
 STEP = 1e-6  # normalised units: ~3e-4 px at f ≈ 300
@@ -24,12 +25,13 @@ class TruthModel(CameraModel):
     kind = "synth-truth"
 
     def __init__(self, kind: str):
-        if kind not in synth.KINDS:
-            raise ValueError(f"unknown synthetic kind {kind!r}; expected one of {synth.KINDS}")
+        if kind not in synth.ALL_KINDS:
+            raise ValueError(f"unknown synthetic kind {kind!r}; expected one of {synth.ALL_KINDS}")
         self.lens = kind
         fx, fy, cx, cy = synth.INTRINSICS
         self.intrinsics = np.array([fx, fy, cx, cy, 0.0])
-        self.base = "pinhole"
+        # A lens past 180° is reached through angles: its normalised coordinates are equidistant ones.
+        self.base = "equidistant" if kind in synth.WIDE_KINDS else "pinhole"
 
     @property
     def n_params(self) -> int:
@@ -42,7 +44,7 @@ class TruthModel(CameraModel):
         return self  # the truth has nothing to fit
 
     def _uv(self, xn: np.ndarray) -> np.ndarray:
-        return synth.true_project(self.lens, np.column_stack([xn, np.ones(len(xn))]))
+        return synth.true_project(self.lens, camera.ray_of(xn, self.base))
 
     def pixel_of(self, xn: np.ndarray, jacobian: bool = False):
         uv = self._uv(xn)
@@ -67,8 +69,8 @@ class TruthModel(CameraModel):
     @classmethod
     def from_json(cls, intrinsics: np.ndarray, distortion: dict[str, Any], base: str) -> Self:
         """The truth back from its ``distortion_json`` (the intrinsics are the lens's own)."""
-        if distortion.get("lens") not in synth.KINDS:
-            raise FormatError(f"distortion.lens: expected one of {synth.KINDS}, got {distortion.get('lens')!r}")
+        if distortion.get("lens") not in synth.ALL_KINDS:
+            raise FormatError(f"distortion.lens: expected one of {synth.ALL_KINDS}, got {distortion.get('lens')!r}")
         return cls(distortion["lens"])
 
 

@@ -69,6 +69,7 @@ export const api = {
   sets: () => request("GET", "/api/sets"),
   set: (id) => request("GET", `/api/sets/${id}`),
   createSet: (form) => request("POST", "/api/sets", form),
+  detectAgain: (id, board) => request("POST", `/api/sets/${id}/detect`, { board }),
   jobs: () => request("GET", "/api/jobs"),
   job: (id) => request("GET", `/api/jobs/${id}`),
   createJob: (body) => request("POST", "/api/jobs", body),

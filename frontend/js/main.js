@@ -3,38 +3,33 @@
 import { api } from "./api.js";
 import { initBoard } from "./board.js";
 import { clearError, showError } from "./errors.js";
+import { initHelp } from "./help.js";
 import { renderJob, renderJobs } from "./jobs.js";
 import { hideResults, renderResults } from "./results.js";
 import { renderSet, renderSets } from "./sets.js";
+import { renderSetNotes } from "./setnotes.js";
 import { initMethods } from "./settings.js";
 import { initUpload } from "./upload.js";
+import { NO_FILES } from "./words.js";
 
 const POLL_MS = 1000;
-const state = { setId: null, jobId: null, shownJob: null, pending: null, sets: [] };
+const state = { setId: null, jobId: null, shownJob: null, sets: [] };
 
 async function submit({ form, method, settings }) {
   clearError();
+  if (!form.getAll("files").length) { showError(new Error(NO_FILES)); return; }
   try {
     const set = await api.createSet(form);
-    // the job is created once detection is done (the API refuses a set still detecting)
-    state.pending = { setId: set.id, method, settings };
     selectSet(set.id);
-    if (set.state === "ready") await startPending(set);
+    // created at once: the job waits in the queue until the set's detection is done
+    const job = await api.createJob({ set_id: set.id, method, settings });
+    state.scrollTo = job.id;   // the user asked for this one: show its results when they come
+    selectJob(job.id);
   } catch (e) { showError(e); }
 }
 
-async function startPending(set) {
-  const p = state.pending;
-  if (!p || p.setId !== set.id) return;
-  state.pending = null;
-  if (set.state !== "ready") {
-    showError(new Error(set.error || `detection ${set.state}: no calibration was started`));
-    return;
-  }
-  const job = await api.createJob({ set_id: set.id, method: p.method, settings: p.settings });
-  state.scrollTo = job.id;   // the user asked for this one: show its results when they come
-  selectJob(job.id);
-}
+// curation (re-run without some views) and the board-size suggestion create jobs too: show them
+document.addEventListener("freecal:job-created", (e) => { state.scrollTo = e.detail.id; selectJob(e.detail.id); });
 
 function selectSet(id) { state.setId = id; refresh(); }
 function selectJob(id) {
@@ -56,16 +51,16 @@ async function refresh() {
     const [sets, jobs] = await Promise.all([api.sets(), api.jobs()]);
     state.sets = sets.sets;
     renderSets(sets.sets, state.setId, selectSet);
-    renderJobs(jobs.jobs, state.jobId, selectJob);
+    renderJobs(jobs.jobs, state.jobId, selectJob, sets.sets);
     let set = null;
     if (state.setId) {
       set = await api.set(state.setId);
       renderSet(set);
-      if (state.pending && ["ready", "failed", "cancelled"].includes(set.state)) await startPending(set);
+      renderSetNotes(set, jobs.jobs);
     }
     if (state.jobId) {
       const job = await api.job(state.jobId);
-      renderJob(job, cancel);
+      renderJob(job, cancel, state.sets);
       if (job.state === "done" && state.shownJob !== job.id) {
         state.shownJob = job.id;
         if (job.set_id && job.set_id !== state.setId) { state.setId = job.set_id; set = await api.set(job.set_id); renderSet(set); }
@@ -90,6 +85,7 @@ async function health() {
 
 async function init() {
   initBoard();
+  initHelp();
   initUpload(submit);
   try {
     initMethods(await api.methods());

@@ -8,7 +8,10 @@ import { knotsFigure } from "./plots/knots.js";
 import { rectifiedFigure } from "./plots/rectified.js";
 import { uncertaintyFigure } from "./plots/uncertainty.js";
 import { vectorsFigure } from "./plots/vectors.js";
-import { modelChoiceTable, overallTable, qualityTable, restartNote, smoothingTable, viewsTable } from "./tables.js";
+import { curationTable } from "./curation.js";
+import { renderSetJobs } from "./setjobs.js";
+import { modelChoiceTable, overallTable, qualityTable, restartNote, smoothingTable } from "./tables.js";
+import { cameraCard } from "./verdict.js";
 import { renderViewer } from "./viewer.js";
 
 const LABELS = {
@@ -21,8 +24,7 @@ const LABELS = {
 export async function renderResults(job, set) {
   const section = document.getElementById("results");
   section.hidden = false;
-  const method = job.method === "compare" ? `compare (figures: ${job.summary.verdict || "none"})` : job.method;
-  document.getElementById("results-title").textContent = `3. Results of job ${job.id}: ${method}`;
+  section.dataset.job = job.id;
   renderDownloads(job.downloads, job);
   const has = (n) => n in job.downloads;
   const [comparison, views, corners, heatmap, field, knots, calibration] = await Promise.all([
@@ -33,21 +35,25 @@ export async function renderResults(job, set) {
     has("knots.json") ? api.knotCells(job.id) : null,
     has("calibration.json") ? api.file(job.id, "calibration.json") : null,
   ]);
+  document.getElementById("results-title").textContent = `3. Results: ${resultTitle(job, calibration)}`;
   const metrics = document.getElementById("metrics");
   const who = job.method === "compare" ? ` (${job.summary.verdict})` : "";
-  metrics.replaceChildren(overallTable(comparison), views.length ? viewsTable(views, `Per view${who}`) : "",
+  const camera = calibration && (calibration.diagnostics || {}).camera;
+  metrics.replaceChildren(calibration ? cameraCard(calibration) : "", overallTable(comparison), views.length ? curationTable(views, job, `Per view${who}`) : "",
     calibration ? restartNote(calibration) : "", calibration ? modelChoiceTable(calibration) : "",
     calibration ? smoothingTable(calibration) : "");
+  renderSetJobs(job).catch(() => {});   // the set's other calibrations side by side (a note, never an error)
   const imageSize = heatmap ? heatmap.image_size : set && set.image_size;
   const figs = [];
   if (heatmap) figs.push(heatmapFigure({ heatmap, corners, views }));
   if (corners.length) figs.push(vectorsFigure({ corners, views, set, imageSize }));
   if (field) figs.push(fieldMapFigure({ field }), fieldVectorsFigure({ field }));
-  if (knots) figs.push(knotsFigure({ knots, imageSize }));
+  // a knot grid only where a field was fitted (a held field, or none, has nothing to show)
+  if (knots && (!camera || camera.field)) figs.push(knotsFigure({ knots, imageSize }));
   if (set && set.coverage && imageSize) figs.push(coverageFigure({ coverage: set.coverage, imageSize }));
   if (set && calibration) figs.push(rectifiedFigure({ job, set }));
   const plots = document.getElementById("plots");
-  plots.replaceChildren(...figs);
+  plots.replaceChildren(...figs.filter(Boolean));
   await renderViewer(job);
   if (calibration) {
     try { metrics.append(qualityTable(await api.quality(job.id))); }
@@ -65,6 +71,17 @@ function renderDownloads(downloads, job) {
     ? el("a", { href: api.mapsUrl(job.id), download: "", "data-file": "maps.npz" }, "Undistortion maps (NPZ)") : "";
   box.replaceChildren(el("strong", {}, "Download:"), ...order.map((n) =>
     el("a", { href: apiUrl(downloads[n]), download: "", "data-file": n }, LABELS[n] || n)), maps);
+}
+
+/** The heading says what was chosen, in words: "Kannala-Brandt model (k1..k4), chosen by method auto" —
+ * never a method's code name for another model. */
+function resultTitle(job, calibration) {
+  const camera = calibration && (calibration.diagnostics || {}).camera;
+  if (job.method === "compare") {
+    return `every method compared` + (job.summary.verdict ? `, the best: ${camera ? camera.model : job.summary.verdict}` : "");
+  }
+  if (!camera) return `method ${job.method}`;
+  return job.method === "auto" ? `${camera.model}, chosen by method auto` : camera.model;
 }
 
 export function hideResults() { document.getElementById("results").hidden = true; }

@@ -1,12 +1,14 @@
 // The sets list, and one set's detection: progress, warnings, each image with its thumbnail and verdict.
 import { thumbUrl } from "./api.js";
+import { etaText, observe, remaining } from "./eta.js";
 import { el, num } from "./format.js";
+import { when } from "./names.js";
 
 export function renderSets(sets, selectedId, onSelect) {
   const ul = document.getElementById("sets");
   ul.replaceChildren(...sets.map((s) => el("li", { class: s.id === selectedId ? "selected" : "" },
     el("button", { type: "button", onclick: () => onSelect(s.id), "aria-label": `set ${s.name}` },
-      el("span", { class: "grow" }, `${s.name}`),
+      el("span", { class: "grow" }, `${s.name} · ${when(s.created_at)}`),
       el("span", { class: "muted" }, `${s.n_views}/${s.n_images} views`),
       el("span", { class: `state ${s.state}` }, s.state)))));
   if (!sets.length) ul.append(el("li", { class: "muted" }, el("span", {}, "\u00a0 no sets yet: upload some images")));
@@ -25,8 +27,10 @@ export function renderSet(set) {
   document.getElementById("set-progress").value = set.progress;
   const used = (set.images || []).filter((i) => i.status === "used").length;
   const rejected = (set.images || []).filter((i) => i.status === "rejected").length;
+  if (set.state === "detecting") observe(`set:${set.id}`, set.progress);
+  const eta = set.state === "detecting" ? etaText(remaining(`set:${set.id}`, set.progress, null)) : "";
   document.getElementById("set-progress-label").textContent =
-    `${set.state} · ${set.progress.toFixed(0)} % · ${used} used, ${rejected} rejected` +
+    `${set.state} · ${set.progress.toFixed(0)} % · ${used} used, ${rejected} rejected` + (eta ? ` · ${eta}` : "") +
     (set.image_size ? ` · ${set.image_size[0]}×${set.image_size[1]} px` : "") + (set.error ? ` · ${set.error}` : "");
   const warn = document.getElementById("set-warnings");
   warn.hidden = !set.warnings.length;

@@ -5,7 +5,7 @@ const OVERALL = [
   ["rmse", "rmse [px]", px], ["rmse_axis", "rmse per axis [px]", px],
   ["rmse_center", "centre rmse [px]", px], ["rmse_edge", "edge rmse [px]", px],
   ["cv_validation_rmse", "hold-out views rmse (CV) [px]", px], ["holdout_rmse", "hold-out set rmse [px]", px],
-  ["n_points", "points", num], ["n_params", "parameters", num], ["seconds", "fit time [s]", (x) => num(x, 2)],
+  ["n_points", "points", num], ["n_params", "fitted parameters", num], ["seconds", "fit time [s]", (x) => num(x, 2)],
 ];
 
 /** comparison.json of a single job ({rows}) or of a compare job ({methods, verdict}) → rows. */
@@ -26,18 +26,9 @@ export function overallTable(doc) {
       el("th", { scope: "row" }, r.method),
       r.error ? el("td", { colspan: cols.length }, r.error) : cols.map(([k, , f]) => el("td", {}, f(r[k])))))));
   const note = el("p", { class: "muted" }, "rmse: per-point Euclidean RMS (OpenCV's figure); per axis: RMS of x and y " +
-    "components (mrcal's). Centre: corners in the middle half of the image. CV: each view held out once, model fixed, pose refit.");
+    "components (mrcal's). Centre: corners in the middle half of the image. CV: each view held out once, model fixed, pose refit. " +
+    "Fitted parameters: those the fit moved (a field over a core holds the core's coefficients; a held field counts none).");
   return el("div", { class: "table-wrap" }, table, note);
-}
-
-export function viewsTable(views, title) {
-  const table = el("table", { id: "metrics-views" },
-    el("caption", {}, title),
-    el("thead", {}, el("tr", {}, ["view", "points", "rmse [px]", "rmse per axis [px]", "max error [px]", "outliers"]
-      .map((h) => el("th", { scope: "col" }, h)))),
-    el("tbody", {}, views.map((v) => el("tr", {}, el("th", { scope: "row" }, v.view), el("td", {}, num(v.n_points)),
-      el("td", {}, px(v.rmse)), el("td", {}, px(v.rmse_axis)), el("td", {}, px(v.max_error)), el("td", {}, num(v.outliers))))));
-  return el("div", { class: "table-wrap scroll-y" }, table);
 }
 
 /** The default method's model choice (method "auto"): each candidate's error on views left out of its fit,
@@ -69,6 +60,9 @@ export function restartNote(calibration) {
     `(${num(r.first.rmse, 3)} px, then ${num(r.restarted.rmse, 3)} px).` + (r.warning ? ` Warning: ${r.warning}.` : ""));
 }
 
+/** A grid's score: the joint fit's error on the views left out when there is one (what chose), else the control points'. */
+const mse = (c) => (c.validation != null ? c.validation : c.cv);
+
 /** The B-spline's knot-grid and bandwidth choice: error on views left out of the field's fit (lower is better). */
 export function smoothingTable(calibration) {
   const curve = (calibration.diagnostics || {}).smoothing_curve || [];
@@ -79,20 +73,25 @@ export function smoothingTable(calibration) {
     && c.bandwidth_factor === settings.bandwidth_factor_used && !c.skipped;
   const table = el("table", { id: "metrics-smoothing" },
     el("caption", {}, "Knot grid and bandwidth chosen from the data (validation over the views)"),
-    el("thead", {}, el("tr", {}, ["knot grid", "bandwidth factor", "smoothing λ", "validation error [px²]", "effective parameters", ""]
+    el("thead", {}, el("tr", {}, ["knot grid", "bandwidth factor", "smoothing λ", "validation error [px²]", "as rms per axis [px]",
+      "effective parameters", ""]
       .map((h) => el("th", { scope: "col" }, h)))),
     el("tbody", {}, curve.map((c) => el("tr", { class: isChosen(c) ? "best" : "" },
       el("th", { scope: "row" }, c.intervals.join(" × ")), el("td", {}, num(c.bandwidth_factor, 1)),
-      el("td", {}, num(c.lambda_smooth, 3)), el("td", {}, num(c.cv, 4)), el("td", {}, num(c.dof, 0)),
+      el("td", {}, num(c.lambda_smooth, 3)), el("td", {}, num(mse(c), 4)),
+      el("td", {}, mse(c) == null ? "–" : num(Math.sqrt(mse(c) / 2), 4)), el("td", {}, num(c.dof, 0)),
       el("td", {}, isChosen(c) ? "chosen" : c.skipped ? `skipped (${c.skipped})` : "")))));
-  return el("div", { class: "table-wrap" }, table);
+  const note = el("p", { class: "muted" }, "Validation error: the mean squared error of the views left out, in px² " +
+    "(squared pixels, both axes summed per corner); its rms per axis, √(px² / 2), is in pixels like every other error " +
+    "here. Effective parameters: what the field costs the data once smoothed.");
+  return el("div", { class: "table-wrap" }, table, note);
 }
 
-/** The paper's Table 7 for the job's calibration and for the raw photos. */
+/** Straightness, spacing and orthogonality of the boards, rectified by the calibration and as photographed. */
 export function qualityTable(q) {
   const rows = [["raw photos", q.raw], [`rectified by ${q.method}`, q.calibrated]];
   const table = el("table", { id: "metrics-quality" },
-    el("caption", {}, "Geometric quality of the rectified boards (Table 7)"),
+    el("caption", {}, "Geometric quality of the rectified boards"),
     el("thead", {}, el("tr", {}, ["", "straightness [px]", "spacing CV", "orthogonality [°]", "field smoothness [1/px]"]
       .map((h) => el("th", { scope: "col" }, h)))),
     el("tbody", {}, rows.map(([label, r]) => el("tr", {}, el("th", { scope: "row" }, label),

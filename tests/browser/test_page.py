@@ -165,7 +165,7 @@ def test_upload_watch_review_download_and_3d(browser, service, shots, tmp_path):
     page.click("#open-3d")
     frame = page.wait_for_selector("iframe.viewer-frame")
     frame.scroll_into_view_if_needed()
-    job_id = page.text_content("#results-title").split("job ")[1].split(":")[0]
+    job_id = page.get_attribute("#results", "data-job")
 
     def scene():
         clients = service.client.get("/api/viewer").json()["clients"]
@@ -191,7 +191,7 @@ def test_upload_watch_review_download_and_3d(browser, service, shots, tmp_path):
 
     wide = browser.new_page(viewport={"width": 1920, "height": 1080})
     wide.goto(base + "/")
-    wide.click(f"#jobs button[aria-label^='job {job_id}']")
+    wide.click(f"#jobs button[data-job='{job_id}']")
     wide.wait_for_selector("#fig-heatmap canvas", timeout=30_000)
     wide.screenshot(path=shots / "07-results-1920.png")
     wide.close()
@@ -254,7 +254,7 @@ def test_browser_with_a_token_asks_once_then_sends_it_everywhere(browser, guarde
     frame.scroll_into_view_if_needed()
     src = frame.get_attribute("src")
     assert src.startswith("/viewer/?") and f"token={TOKEN}" in src and "websocket=" in src
-    job_id = page.text_content("#results-title").split("job ")[1].split(":")[0]
+    job_id = page.get_attribute("#results", "data-job")
 
     def scene():
         clients = guarded.client.get("/api/viewer").json()["clients"]
@@ -276,7 +276,7 @@ def test_browser_with_a_token_asks_once_then_sends_it_everywhere(browser, guarde
     other.screenshot(path=shots / "09-token-form.png")
     other.fill("#token-input", TOKEN)
     other.click("#token-form button[type=submit]")
-    other.wait_for_selector(f"#jobs button[aria-label^='job {job_id}']", timeout=30_000)
+    other.wait_for_selector(f"#jobs button[data-job='{job_id}']", timeout=30_000)
     assert other.locator("#token-form").count() == 0
     other.close()
     page.close()

@@ -48,6 +48,7 @@ def test_zhang_matches_cv2_calibrate_camera_on_the_same_corners():
     assert np.allclose(cal.model.coefficients, dist.ravel()[:5], atol=1e-4)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["rational", "fisheye", "tps", "mls"])
 def test_every_baseline_converges_on_real_corners(method):
     obs = stereo_left()

@@ -34,6 +34,7 @@ def test_training_error_is_at_the_noise_floor(results, kind, ratio):
     assert cal.metrics["rmse_axis"] >= 0.9 * floor  # not fitting the noise either
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind, limit", [("radial", 0.12), ("asymmetric", 0.12), ("fisheye", 0.12)])
 def test_holdout_error_over_the_whole_image(results, kind, limit):
     _, hold = results[kind]
@@ -41,6 +42,7 @@ def test_holdout_error_over_the_whole_image(results, kind, limit):
     assert hold["rmse_edge"] <= 1.5 * limit  # edges and corners included
 
 
+@pytest.mark.slow
 def test_result_carries_diagnostics_and_settings(results):
     cal, _ = results["asymmetric"]
     d = cal.diagnostics
@@ -53,6 +55,7 @@ def test_result_carries_diagnostics_and_settings(results):
     assert cal.settings["gauge"]["point"] is not None and cal.settings["intervals_used"]
 
 
+@pytest.mark.slow
 def test_gauge_holds_the_field_flat_at_the_principal_point(results):
     cal, _ = results["asymmetric"]
     field = cal.model.field
@@ -61,6 +64,7 @@ def test_gauge_holds_the_field_flat_at_the_principal_point(results):
     assert np.max(np.abs(values)) < 1e-4
 
 
+@pytest.mark.slow
 def test_a_lens_opencv_models_exactly_gets_that_model_and_no_field(results):
     """On OpenCV's own lens a field can only fit noise: the choice is OpenCV's
     model, written as that model, the very calibration the zhang method gives
@@ -75,6 +79,7 @@ def test_a_lens_opencv_models_exactly_gets_that_model_and_no_field(results):
     assert np.isclose(cal.metrics["rmse"], zhang.metrics["rmse"], rtol=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["asymmetric"])
 def test_a_saved_calibration_keeps_what_its_covariance_needs(results, kind):
     """The regularisers, the gauge and a held field come back from the JSON

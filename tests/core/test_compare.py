@@ -37,6 +37,7 @@ def test_compare_json_contract(result):
     assert result["verdict"] in result["methods"]
 
 
+@pytest.mark.slow
 def test_parametric_model_wins_on_its_own_lens(result):
     # The radial lens is OpenCV's model: zhang fits it to the noise, KB cannot.
     ms = result["methods"]

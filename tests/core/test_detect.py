@@ -9,6 +9,7 @@ import pytest
 
 from backend.cli import main as cli
 from calib_core.board import BoardSpec
+from calib_core.detection import detect
 from calib_core.detection.detect import detect_images
 from calib_core.detection.grid import expand, gap_strides, lattice_score, place_grid, right_handed
 from calib_core.errors import DataError
@@ -60,10 +61,21 @@ def test_every_image_gets_a_plain_report(images):
                                [399 - v.image_points[0][0], 359 - v.image_points[0][1]], atol=0.1)
 
 
-def test_serial_and_pool_agree(images):
+def test_serial_and_pool_agree(images, monkeypatch):
     a = detect_images(images, BOARD, workers=1)
+    monkeypatch.setattr(detect, "POOL_PAYS_AFTER", 0.0)  # these few images would not start a pool
     b = detect_images(images, BOARD, workers=2)
     assert [r.to_json() for r in a.reports] == [r.to_json() for r in b.reports]
+
+
+def test_a_set_quicker_than_a_pools_start_is_detected_without_one(images, monkeypatch):
+    def no_pool(*args, **kwargs):
+        raise AssertionError("a pool was started for a set this process detects faster alone")
+
+    serial = detect_images(images, BOARD, workers=1)
+    monkeypatch.setattr(detect.cf, "ProcessPoolExecutor", no_pool)
+    det = detect_images(images, BOARD, workers=2)
+    assert [r.to_json() for r in det.reports] == [r.to_json() for r in serial.reports]
 
 
 def test_wrong_board_spec_is_explained(tmp_path):
@@ -71,7 +83,7 @@ def test_wrong_board_spec_is_explained(tmp_path):
     cv2.imwrite(str(tmp_path / "y.png"), np.full((360, 400), 90, np.uint8))
     det = detect_images([tmp_path / "y.png"], BoardSpec.parse("chessboard:4x3:10mm"), workers=1)
     assert det.observations is None
-    assert "board (chessboard:4x3:10mm) was found in none of the 1 images" in det.warnings[0]
+    assert "chessboard of 4 × 3 inner corners was found in none of the 1 photos" in det.warnings[0]
     # A board smaller than the spec is a partial view of it: kept, as ids of the 9x6 board.
     det = detect_images([tmp_path / "x.png"], BoardSpec.parse("chessboard:9x6:10mm"), workers=1)
     assert det.reports[0].status == "used" and det.reports[0].n_corners == 30
@@ -118,7 +130,7 @@ def test_cli_detect_writes_observations(images, tmp_path, capsys):
     assert cli(["detect", str(images / "a_good.png"), str(images / "e_good.png"), "--board", "chessboard:6x5:10mm",
                 "-o", str(out)]) == 0
     text = capsys.readouterr()
-    assert "2/2 images used, 60 corners" in text.out and "detecting [" in text.err
+    assert "2/2 images used, 60 corners" in text.out and "detecting: 2/2 images" in text.err
     doc = json.loads(out.read_text())
     assert doc["format"] == "freecal.observations/1" and len(doc["views"]) == 2
     assert cli(["detect", str(images), "--board", "chessboard:9:10mm"]) == 2

@@ -101,6 +101,7 @@ def test_babelcalib_fisheye_partial_boards_match_reference():
     assert min(lattice_ok) >= 0.98, np.round(lattice_ok, 2)
 
 
+@pytest.mark.slow
 def test_babelcalib_grown_corners_match_the_authors_same_corners():
     """Grown over the whole visible board (issue #19): as many corners as the authors'
     detector found, each within a fraction of a pixel of the authors' corner of the same id

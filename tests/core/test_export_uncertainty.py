@@ -50,3 +50,13 @@ def test_the_sidecar_needs_the_corners(tmp_path, capsys):
     radial_zhang().save(tmp_path / "cal.json")
     assert cli(["export", str(tmp_path / "cal.json"), "--to", "mrcal", "-o", str(tmp_path / "m"), "--uncertainty"]) == 2
     assert "--uncertainty needs --observations" in capsys.readouterr().err
+
+
+def test_json_reports_the_choice_and_both_errors(tmp_path, capsys):
+    radial_zhang().save(tmp_path / "cal.json")
+    assert cli(["export", str(tmp_path / "cal.json"), "--to", "kalibr", "-o", str(tmp_path / "camchain.yaml"),
+                "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["format"] == "kalibr" and doc["exact"] is False and doc["consumer_model"] in ("radtan", "equidistant")
+    assert {c["model"] for c in doc["candidates"]} == {"opencv4", "kb4"}
+    assert doc["fit_error"]["covered"]["n_samples"] > 100 and doc["fit_error"]["image"]["max_px"] >= 0

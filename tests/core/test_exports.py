@@ -61,6 +61,7 @@ def test_the_default_on_opencvs_lens_exports_its_model_exactly():
     assert np.abs(got - cal.project(rays[ok])).max() < 1e-6
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["opencv8", "kb4"])
 def test_lean_fit_opencv_yaml_projects_within_its_fit_error(name):
     cal = cal_of("fisheye", "bspline", (("core", "fisheye"),))
@@ -83,6 +84,7 @@ def test_a_kannala_brandt_calibration_exports_to_the_rational_model_within_hundr
     assert fit.rms < 0.02 and fit.max < 0.2
 
 
+@pytest.mark.slow
 def test_ros_and_mrcal_exports_load_and_project_within_fit_error(tmp_path):
     cal = cal_of("asymmetric", "bspline")
     fit = fit_lean(cal, "opencv8", covered=np.concatenate([v.image_points for v in synthetic("asymmetric").train.views]))

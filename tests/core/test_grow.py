@@ -3,11 +3,14 @@ from __future__ import annotations
 
 import functools
 
+import cv2
 import numpy as np
+import pytest
 
 from calib_core import synth
 from calib_core.board import BoardSpec
 from calib_core.calibration import Calibration
+from calib_core.detection import image_circle
 from calib_core.detection.corner_error import best_motion
 from calib_core.detection.detect_image import detect_gray
 from calib_core.detection.grow import Lattice, grow_board
@@ -46,6 +49,7 @@ def _against_truth(ids, pts, true_ids, true_uv):
     return k, np.linalg.norm(pts - true_uv[k], axis=1)
 
 
+@pytest.mark.slow
 def test_grown_grid_reaches_the_image_edge_with_true_ids():
     """View 3: the board runs off the right edge of the frame, bending hard there."""
     img, true_ids, true_uv = _view(3)
@@ -75,6 +79,7 @@ def test_a_calibration_predicts_the_rest_of_the_board_from_a_small_patch():
     assert err.max() < 1.0 and np.median(err) < 0.1
 
 
+@pytest.mark.slow
 def test_detect_images_reports_what_the_calibration_added(tmp_path):
     import cv2
 
@@ -111,3 +116,21 @@ def test_corners_one_step_off_fail_the_colour_test():
     wrong = saddle.is_corner(img, lat.p[k], e_col[k], e_row[k], ~even, half)
     assert right.mean() > 0.9
     assert wrong.mean() < 0.01
+
+
+def test_the_unlit_frame_is_found_however_little_of_it_touches_the_border():
+    """The shortcut for frames lit to the border gives what the full search gives."""
+    rng = np.random.default_rng(3)
+    lit = rng.integers(40, 255, (120, 160), dtype=np.uint8)
+    assert np.all(image_circle.distance_to_unlit(lit) >= 1e8)
+    circle = lit.copy()
+    yy, xx = np.mgrid[:120, :160]
+    circle[(xx - 80) ** 2 + (yy - 60) ** 2 > 55 ** 2] = 0  # a fisheye's black frame
+    d = image_circle.distance_to_unlit(circle)
+    assert d[60, 80] > 40 and d[2, 2] == 0
+    for row in (0, image_circle.BLUR_REACH - 2):  # a dark patch at the border, and one just inside the blur's reach
+        patch = lit.copy()
+        patch[row : row + 12, 70:110] = 0
+        slow = (cv2.GaussianBlur(patch, (0, 0), image_circle.BLUR_SIGMA) < image_circle.UNLIT)
+        touches = slow[0].any()
+        assert (image_circle.distance_to_unlit(patch).min() == 0) == touches

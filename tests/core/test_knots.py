@@ -43,6 +43,7 @@ def test_support_merging_and_cap():
     assert out[0] == 0 and out[-1] == 1000  # the domain ends stay
 
 
+@pytest.mark.slow
 def test_coverage_merge_empties_no_seen_cell():
     rng = np.random.default_rng(3)
     pts = rng.uniform(0, 100, (400, 2))

@@ -27,7 +27,7 @@ def test_the_report_holds_the_pages_products_and_their_figures(tmp_path):
                  "heatmap.json", "distortion_field.json", "knots.json", "knot_cells.json", "uncertainty.json"):
         assert json.loads((folder / name).read_text()) if name.endswith(".json") else (folder / name).read_text()
     for name in ("residual_heatmap.png", "residual_vectors.png", "view_errors.png", "distortion_field.png",
-                 "knot_grid.png"):
+                 "knot_grid.png", "distortion_maps.png", "uncertainty.png", "coverage.png"):
         image = cv2.imread(str(folder / name))
         assert image is not None and min(image.shape[:2]) > 200, name
     corners = json.loads((folder / "corner_residuals.json").read_text())
@@ -36,6 +36,12 @@ def test_the_report_holds_the_pages_products_and_their_figures(tmp_path):
     assert np.array(cells["counts"]).shape == (6, 6)
     inliers = sum(not c["outlier"] for c in corners)
     assert 0.95 * inliers <= np.sum(cells["counts"]) <= inliers
+    page = (folder / "report.html").read_text()  # the page freecal report writes, figures inside
+    assert page.count("data:image/png;base64,") == 8 and "id='parameters-table'" in page
+    params = json.loads((folder / "parameters.json").read_text())
+    assert [r["name"] for r in params["parameters"]] == ["fx", "fy", "cx", "cy", "skew"]
+    assert params["field"]["knot_intervals"] == [6, 6] and params["parameters"][0]["std"] > 0
+    assert json.loads((folder / "coverage.json").read_text())["n_points"] == s.train.n_points
 
 
 def test_corner_residuals_are_observed_minus_projected_for_every_corner():
@@ -59,3 +65,15 @@ def test_a_model_without_a_field_has_no_knot_products():
     files = tables.report_files(cal, s.train)
     assert "knots.json" not in files and tables.knot_cells(cal, files["corner_residuals.json"]) is None
     assert "opencv.yaml" in files
+
+
+def test_a_report_of_other_corners_is_refused_in_one_line(tmp_path, capsys):
+    """freecal report CAL.json OBS.json with corners the calibration was not fitted to."""
+    cal = calibrate(synthetic("radial").train, "zhang")
+    cal.save(tmp_path / "cal.json")
+    synthetic("radial").holdout.save(tmp_path / "holdout.json")
+    assert cli(["report", str(tmp_path / "cal.json"), str(tmp_path / "holdout.json"), "-o",
+                str(tmp_path / "r.html")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "give the observations it was fitted to" in err
+    assert not (tmp_path / "r.html").exists()

@@ -66,6 +66,7 @@ def test_two_poses_are_not_enough_but_three_are_checked_further():
     check_views(Observations(synth.IMAGE_SIZE, good[:3], {}))  # three poses, tilted: fine
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
 def test_every_board_face_on_is_refused(kind):
     """Before the solver when the corners show it (depth ratios); with this wide lens's distortion bending

@@ -3,6 +3,7 @@ caught, restarted from that camera, and reported."""
 import dataclasses
 
 import numpy as np
+import pytest
 
 from calib_core.fitting.init import initialise
 from calib_core.fitting.solve import SolveSettings, levenberg_marquardt
@@ -35,6 +36,7 @@ def test_a_fit_stopped_at_a_wrong_focal_length_is_caught_and_restarted():
     assert np.sqrt(np.mean(np.sum(kept.residuals ** 2, axis=1))) < 0.45
 
 
+@pytest.mark.slow
 def test_a_good_fit_is_not_restarted():
     for kind in ("radial", "asymmetric"):
         cal = calibrate(synthetic(kind).train, "bspline")

@@ -350,9 +350,9 @@ def test_board_that_does_not_match_the_photos(service):
     set_id = r.json()["id"]
     s = wait_for(lambda: (s := service.client.get(f"/api/sets/{set_id}").json())["state"] in ("ready", "failed") and s,
                  60, "detection with the wrong board", service.logs())
-    assert s["state"] == "failed" and "check the board spec" in s["error"]
+    assert s["state"] == "failed" and "found in none of the 3 photos" in s["error"] and "check the board" in s["error"]
     assert all(im["status"] == "rejected" and "board not found" in im["reason"] for im in s["images"])
-    refused(service, service.client.post("/api/jobs", json={"set_id": set_id}), 409, "failed", "ready")
+    refused(service, service.client.post("/api/jobs", json={"set_id": set_id}), 409, "failed", "board")
 
 
 ODD_NAMES = ["../../escape.png", "/etc/absolute.png", "C:\\Windows\\win.png", "spaces & ümlauts (1).png",

@@ -12,7 +12,7 @@ from ...base.repository import sets as set_rows
 from ..deps import ContextDep, QueueDep
 from ..errors import ApiError
 from ..presenters import set_public
-from ..schemas import Message, SetPublic, SetsPublic
+from ..schemas import DetectionCreate, Message, SetPublic, SetsPublic
 from ..security import QuotaDep, client_of
 from ..services import sets as service
 from ..uploads import Upload
@@ -59,6 +59,17 @@ def read_observations(ctx: ContextDep, set_id: str) -> FileResponse:
     if not path.exists():
         raise ApiError(409, f"set {set_id} has no corners yet: wait until its state is ready")
     return FileResponse(path, media_type="application/json", filename=f"freecal-set-{set_id}-observations.json")
+
+
+@router.post("/{set_id}/detect", status_code=status.HTTP_202_ACCEPTED, response_model=SetPublic, responses=ERRORS)
+def detect_again(ctx: ContextDep, queue: QueueDep, quota: QuotaDep, request: Request, set_id: str,
+                 body: DetectionCreate) -> SetPublic:
+    """Detect the set's photos again with another board (e.g. the size the photos suggest): no new upload.
+    Calibrations created meanwhile wait for the new corners."""
+    quota.check(ctx, client_of(request))
+    job_id = service.detect_again(ctx, queue, set_id, body.board)
+    quota.add(client_of(request), job_id)
+    return set_public(ctx, service.get(ctx, set_id), with_images=True)
 
 
 @router.delete("/{set_id}", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)

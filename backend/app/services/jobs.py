@@ -17,6 +17,7 @@ from ...queue.tasks import Queue
 from .. import uploads
 from ..errors import ApiError, not_found
 from ..schemas import JobCreate
+from . import exclusion
 from . import sets as set_service
 from .enqueue import enqueue_or_undo
 from .ids import new_id
@@ -82,18 +83,24 @@ def _non_finite(value: Any, where: str) -> str | None:
 def create(ctx: Context, queue: Queue, body: JobCreate) -> str:
     validate(body.method, body.settings)
     job_id = new_id()
+    stage = "queued"
     if body.observations is not None:
         obs = uploads.observations_within(body.observations, "the inline observations", ctx.settings)
+        exclude = exclusion.check(ctx, body.exclude, None, obs)
         storage.write_json(ctx.storage.job_dir(job_id) / "input.json", obs.to_json())
     else:
         row = sets.get(ctx.db, body.set_id)
         if row is None:
             raise not_found("set", body.set_id)
         state, _, error, _ = set_service.state(ctx, row)
-        if state != "ready":
-            raise ApiError(409, f"set {body.set_id} is {state}" + (f" ({error})" if error else "")
-                           + ": create the job once GET /api/sets/{id} says ready")
-    jobs.create(ctx.db, job_id, "calibrate", body.set_id, body.method, body.settings)
+        if state in ("failed", "cancelled"):
+            raise ApiError(409, f"set {row['name']!r} has no corners: its detection {state}"
+                           + (f" ({error})" if error else "") + "; run its detection again with the right board")
+        if state != "ready":  # queued now, run by the worker once the detection is done (execute.py)
+            stage = jobs.WAITING_FOR_DETECTION
+        exclude = exclusion.check(ctx, body.exclude, row, None)
+    settings = {**body.settings, jobs.EXCLUDE_KEY: exclude} if exclude else body.settings
+    jobs.create(ctx.db, job_id, "calibrate", body.set_id, body.method, settings, stage)
 
     def undo() -> None:
         jobs.delete(ctx.db, job_id)

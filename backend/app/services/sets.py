@@ -1,6 +1,7 @@
 """Image sets: upload, read, delete."""
 from __future__ import annotations
 
+import json
 from typing import Any
 
 from ...base import storage
@@ -16,39 +17,108 @@ SET_STATE = {"queued": "queued", "running": "detecting", "done": "ready", "faile
              "cancelled": "cancelled"}
 
 
+BOARD_NEEDED = ("images need a board spec in the form field 'board', e.g. chessboard:9x6:25mm "
+                "(inner corners and square size)")
+
+
 def create(ctx: Context, queue: Queue, files: list[uploads.Upload], board_spec: str | None,
            name: str | None) -> str:
     board = _board(board_spec)
-    if board is None and not (len(files) == 1 and files[0].name.lower().endswith(".json")) and files:
-        raise ApiError(422, "images need a board spec in the form field 'board', e.g. "
-                            "chessboard:9x6:25mm (inner corners and square size)")
+    only_json = bool(files) and all(f.name.lower().endswith(".json") for f in files)
+    if board is None and files and not only_json:
+        raise ApiError(422, BOARD_NEEDED)
     set_id = new_id()
     try:
         got = uploads.receive(files, ctx.storage.images_dir(set_id), ctx.settings)
-        title = name or (files[0].name if len(files) == 1 else f"{len(files)} images")
+        title = name or (files[0].name if len(files) == 1 else f"{len(files)} files")
         if got.kind == "observations":
-            obs = got.observations
+            obs = got.observations if got.corners_file is None else _corners_vnl(got, board, ctx)
+            _keep_skipped(ctx, set_id, got.skipped)
             if board is not None:
                 obs.board = board.to_json()
             storage.write_json(ctx.storage.observations_path(set_id), obs.to_json())
             sets.create(ctx.db, set_id, title, "observations", obs.board, [], list(obs.image_size), len(obs.views))
             return set_id
         if board is None:
-            raise ApiError(422, "images need a board spec in the form field 'board', e.g. "
-                                "chessboard:9x6:25mm (inner corners and square size)")
+            raise ApiError(422, BOARD_NEEDED)
+        _keep_skipped(ctx, set_id, got.skipped)
         sets.create(ctx.db, set_id, title, "images", board.to_json(), got.names)
     except BaseException:
         ctx.storage.remove_set(set_id)
         raise
+    start_detection(ctx, queue, set_id, board, undo_set=True)
+    return set_id
+
+
+def start_detection(ctx: Context, queue: Queue, set_id: str, board: Any, undo_set: bool = False) -> str:
+    """Queue a detection of the set's images with ``board``; the set's state follows its latest detection."""
     job_id = new_id()
     jobs.create(ctx.db, job_id, "detect", set_id, None, {"board": board.to_spec()})
 
     def undo() -> None:
-        sets.delete(ctx.db, set_id)
-        ctx.storage.remove_set(set_id)
+        if undo_set:
+            sets.delete(ctx.db, set_id)
+            ctx.storage.remove_set(set_id)
+        else:
+            jobs.delete(ctx.db, job_id)
 
     enqueue_or_undo(ctx, queue, job_id, undo)
-    return set_id
+    return job_id
+
+
+def curation(ctx: Context, row: dict[str, Any]) -> dict[str, Any]:
+    """What a read of one set adds for the page: the files skipped at upload, the board size the photos suggest."""
+    out: dict[str, Any] = {}
+    path = ctx.storage.skipped_path(row["id"])
+    if path.exists():
+        out["skipped"] = json.loads(path.read_text())
+    suggestion = ctx.storage.board_suggestion_path(row["id"])
+    if suggestion.exists():
+        out["board_suggestion"] = json.loads(suggestion.read_text())
+    return out
+
+
+def _keep_skipped(ctx: Context, set_id: str, items: list[dict[str, str]]) -> None:
+    if items:
+        storage.write_json(ctx.storage.skipped_path(set_id), items)
+
+
+def _corners_vnl(got: uploads.Received, board: Any, ctx: Context):
+    """mrcal's corners.vnl, on the board of the form (the file gives no geometry); FormatError → 422."""
+    from calib_core.imports.mrcal_corners import read_corners_vnl
+
+    up = got.corners_file
+    raw = up.stream.read(ctx.settings.max_observations_bytes + 1)
+    if len(raw) > ctx.settings.max_observations_bytes:
+        raise ApiError(413, f"{up.name!r} is over the limit of {ctx.settings.max_observations_bytes} bytes")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ApiError(422, f"{up.name!r} is not text: mrcal's corners.vnl is a text table") from None
+    obs, none_found = read_corners_vnl(text, board, got.image_size, up.name)
+    if len(obs.views) > ctx.settings.max_files:
+        raise ApiError(413, f"{up.name!r} holds {len(obs.views)} views, over the limit of "
+                            f"{ctx.settings.max_files} per set")
+    got.skipped += [{"name": n, "reason": why} for n, why in none_found]
+    return obs
+
+
+def detect_again(ctx: Context, queue: Queue, set_id: str, board_spec: str) -> str:
+    """A new detection of an image set with another board; the id of its job."""
+    row = get(ctx, set_id)
+    if row["source"] != "images":
+        raise ApiError(409, f"set {row['name']!r} was uploaded as corners: there are no photos to detect again")
+    board = _board(board_spec)
+    if board is None:
+        raise ApiError(422, "board: give the board to detect, e.g. chessboard:15x9:26mm")
+    latest = jobs.latest_detection(ctx.db, set_id)
+    if latest is not None and latest["state"] in jobs.ACTIVE:
+        raise ApiError(409, f"set {row['name']!r} is still being detected: wait until it ends (or cancel it), "
+                            "then detect again")
+    sets.set_board(ctx.db, set_id, board.to_json())
+    ctx.storage.observations_path(set_id).unlink(missing_ok=True)   # the old board's corners
+    ctx.storage.board_suggestion_path(set_id).unlink(missing_ok=True)
+    return start_detection(ctx, queue, set_id, board)
 
 
 def _board(spec: str | None) -> Any:

@@ -14,13 +14,23 @@ from ..db import Database, dumps, loads
 ACTIVE = ("queued", "running")
 
 
+WAITING_FOR_DETECTION = "waiting for detection"  # the stage of a calibration queued on a set still detecting
+EXCLUDE_KEY = "exclude_views"  # in a calibration's stored settings: the views left out of it (JobCreate.exclude)
+
+
+def split_settings(settings: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
+    """A calibration's stored settings → (the method's settings, the names of the views left out)."""
+    rest = dict(settings)
+    return rest, list(rest.pop(EXCLUDE_KEY, []))
+
+
 def create(db: Database, job_id: str, kind: str, set_id: str | None, method: str | None,
-           settings: dict[str, Any]) -> None:
+           settings: dict[str, Any], stage: str = "queued") -> None:
     with db.transaction() as con:
         con.execute(
             "INSERT INTO jobs (id, kind, set_id, method, settings, state, stage, created_at) "
-            "VALUES (?,?,?,?,?, 'queued', 'queued', ?)",
-            (job_id, kind, set_id, method, dumps(settings), time.time()))
+            "VALUES (?,?,?,?,?, 'queued', ?, ?)",
+            (job_id, kind, set_id, method, dumps(settings), stage, time.time()))
 
 
 def _decode(row) -> dict[str, Any]:
@@ -56,6 +66,22 @@ def latest_detection(db: Database, set_id: str) -> dict[str, Any] | None:
     return None if row is None else _decode(row)
 
 
+def queued_on_set(db: Database, set_id: str) -> list[str]:
+    """Ids of the queued calibrations of a set, oldest first (those a finished detection releases)."""
+    with db.connect() as con:
+        rows = con.execute("SELECT id FROM jobs WHERE kind='calibrate' AND set_id=? AND state='queued' "
+                           "ORDER BY created_at", (set_id,)).fetchall()
+    return [r["id"] for r in rows]
+
+
+def fail_queued(db: Database, job_id: str, error: str) -> bool:
+    """queued → failed with ``error`` (a calibration whose set's detection failed); False if no longer queued."""
+    with db.transaction() as con:
+        cur = con.execute("UPDATE jobs SET state='failed', stage='failed', error=?, finished_at=? "
+                          "WHERE id=? AND state='queued'", (error, time.time(), job_id))
+    return cur.rowcount == 1
+
+
 def claim(db: Database, job_id: str, worker: str) -> int | None:
     """queued → running for this worker; the attempt number, or None if not claimable."""
     now = time.time()
@@ -70,8 +96,9 @@ def claim(db: Database, job_id: str, worker: str) -> int | None:
         attempt = row["attempts"] + 1
         con.execute(
             "UPDATE jobs SET state='running', attempts=?, worker=?, heartbeat_at=?, "
-            "started_at=COALESCE(started_at, ?), error=NULL, stages='{}' WHERE id=?",
-            (attempt, worker, now, now, job_id))
+            "started_at=COALESCE(started_at, ?), error=NULL, stages='{}', "
+            "stage=CASE stage WHEN ? THEN 'queued' ELSE stage END WHERE id=?",
+            (attempt, worker, now, now, WAITING_FOR_DETECTION, job_id))
     return attempt
 
 
@@ -176,9 +203,12 @@ def waiting(db: Database, longer_than: float, lease_seconds: float) -> list[str]
 
     A job re-queued after its worker fell silent has waited since at least its last heartbeat
     plus the lease (when recovery could first take it back), not since it was created.
+    A calibration waiting for its set's detection is not waiting for a worker: it is left out.
     """
     with db.connect() as con:
         rows = con.execute(
-            "SELECT id FROM jobs WHERE state='queued' AND MAX(created_at, COALESCE(heartbeat_at + ?, 0)) < ? "
+            "SELECT id FROM jobs j WHERE state='queued' AND MAX(created_at, COALESCE(heartbeat_at + ?, 0)) < ? "
+            "AND NOT (kind='calibrate' AND EXISTS (SELECT 1 FROM jobs d WHERE d.kind='detect' "
+            "AND d.set_id=j.set_id AND d.state IN ('queued', 'running'))) "
             "ORDER BY created_at", (lease_seconds, time.time() - longer_than)).fetchall()
     return [r["id"] for r in rows]

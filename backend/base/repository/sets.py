@@ -69,6 +69,13 @@ def record_detection(db: Database, set_id: str, image_size: list[int] | None, co
                      None if coverage is None else dumps(coverage), dumps(warnings), n_views, set_id))
 
 
+def set_board(db: Database, set_id: str, board: dict) -> None:
+    """The board the set's photos are detected with (a new detection follows)."""
+    with db.transaction() as con:
+        con.execute("UPDATE sets SET board=?, n_views=0, warnings='[]', coverage=NULL WHERE id=?",
+                    (dumps(board), set_id))
+
+
 def reset_images(db: Database, set_id: str) -> None:
     """Back to 'pending' before a detection is retried."""
     with db.transaction() as con:

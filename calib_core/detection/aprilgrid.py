@@ -1,0 +1,74 @@
+"""Kalibr's AprilGrid: AprilTags 36h11 with black squares at their corners.
+
+Layout, as Kalibr builds it (``GridCalibrationTargetAprilgrid.cpp``,
+``kalibr_create_target_pdf``): ``X × Y`` tags of edge ``s`` (the black
+border included, two bits wide), ``g = spacing · s`` apart; tag ``t`` sits at
+column ``t % X``, row ``t // X``, counted from the **bottom-left** of the
+printed page, with its lower-left corner at ``(col, row) · (1 + spacing) · s``.
+Its four corners are points of a ``2X × 2Y`` lattice, numbered row-major
+from the bottom-left: point ``r · 2X + c`` at
+``x = (c // 2)(1 + spacing) s + (c % 2) s``, ``y`` likewise with ``r``
+(page frame: x right, y **up**, z out of the page, as Kalibr's).
+
+Kalibr draws each tag turned by 180° from the AprilTag image OpenCV
+generates for that id (checked bit by bit), so OpenCV's marker corners
+0, 1, 2, 3 (its top-left, top-right, bottom-right, bottom-left) are, on
+the page, the tag's bottom-right, bottom-left, top-left and top-right:
+``CORNER_OFFSETS`` below.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..board import BoardSpec
+from . import corner_refine
+from .markers import Markers, why_none
+
+BORDER_BITS = 2   # Kalibr's tags have a two-bit black border (OpenCV's default is one)
+
+
+def corner_ids(tag_ids: np.ndarray, tag_cols: int) -> np.ndarray:
+    """Kalibr's point indices (T, 4) of OpenCV's four corners of tags ``tag_ids`` (T,),
+    counted from the board's first tag."""
+    tag_ids = np.asarray(tag_ids, dtype=np.int64).reshape(-1)
+    cols = 2 * tag_cols
+    base = (tag_ids // tag_cols) * 2 * cols + (tag_ids % tag_cols) * 2     # the tag's lower-left point
+    return base[:, None] + np.array([1, 0, cols, cols + 1])[None, :]
+
+
+REFINE_SHARE = 0.15   # refinement half-window over the tag's edge in px: inside the two-bit border (0.2)
+# How far the refinement may move OpenCV's tag corner: the black corner squares touch each tag
+# at its corners, so OpenCV's outline of the tag is cut there and its corners land up to a tenth
+# of the tag off (rendered: 2.7 px on 40 px tags); within 0.15 of the tag the X-junction is the
+# only one (the border is 0.2 of the tag wide, the corner square the spacing ratio of it).
+MAX_SHIFT_SHARE = 0.12
+
+
+def detect(gray: np.ndarray, board: BoardSpec, markers: Markers | None = None):
+    """(ids (N,), pixels (N, 2), reason if none) of an AprilGrid in ``gray``.
+
+    OpenCV finds the tags (two-bit border); each tag's corners are polished
+    where the tag's black border meets its corner square (an X-junction):
+    cornerSubPix, then the saddle fit, with a window inside the border
+    (Kalibr itself refines with cornerSubPix, a 5 x 5 window)."""
+    found = markers or Markers(gray)
+    dictionary = str(board.dictionary)
+    corners, tags = found.of(dictionary, board.first_marker, board.n_markers, BORDER_BITS)
+    if len(tags) == 0:
+        return None, None, "board not found: " + why_none(gray, dictionary, BORDER_BITS, board.first_marker,
+                                                          board.n_markers, found)
+    once = np.flatnonzero(np.bincount(tags - board.first_marker)[tags - board.first_marker] == 1)
+    corners, tags = corners[once], tags[once]     # a tag id seen twice: a stray tag, neither is trusted
+    ids = corner_ids(tags - board.first_marker, board.cols).reshape(-1)
+    raw = corners.reshape(-1, 2).astype(np.float64)
+    edge = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).mean(axis=1)   # (T,) px
+    half = np.repeat(np.clip(np.rint(REFINE_SHARE * edge), 2, 10).astype(int), 4)
+    h, w = gray.shape[:2]
+    inside = np.all((raw >= half[:, None] + 1) & (raw <= np.array([w, h]) - 2 - half[:, None]), axis=1)
+    ids, raw, half = ids[inside], raw[inside], half[inside]
+    pts = corner_refine.refine(gray, raw, half)
+    pts, det = corner_refine.saddle_fit(corner_refine.smoothed(gray), pts, half)
+    keep = (det < 0) & (np.linalg.norm(pts - raw, axis=1) <= 0.5 + MAX_SHIFT_SHARE * np.repeat(edge, 4)[inside])
+    if not keep.any():
+        return None, None, f"too few corners (0 of {len(raw)} tag corners confirmed)"
+    return ids[keep], pts[keep], ""

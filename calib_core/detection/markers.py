@@ -1,0 +1,93 @@
+"""ArUco and AprilTag markers: found once per image and dictionary, shared by
+every board that uses them, and, when none is found, why (in words).
+
+Several boards of one dictionary in one image (``freecal.target/1``) each take
+their own id range from the same detection (``Markers.of``). When a board's
+markers are not found, the image is searched for what it does show: markers
+of another common dictionary (a wrong ``--board``), or the board's own
+markers read mirrored (a board seen from behind through the paper, or printed
+mirrored): the reason says so.
+"""
+from __future__ import annotations
+
+import functools
+
+import cv2
+import numpy as np
+
+# Dictionaries looked for when a board's own are absent: the common families, largest of each.
+OTHER_DICTIONARIES = ("DICT_4X4_1000", "DICT_5X5_1000", "DICT_6X6_1000", "DICT_7X7_1000", "DICT_ARUCO_ORIGINAL",
+                      "DICT_APRILTAG_36h11", "DICT_APRILTAG_25h9", "DICT_APRILTAG_16h5")
+FAMILY = {"DICT_4X4": "DICT_4X4_1000", "DICT_5X5": "DICT_5X5_1000", "DICT_6X6": "DICT_6X6_1000",
+          "DICT_7X7": "DICT_7X7_1000"}
+
+
+@functools.lru_cache(maxsize=16)
+def detector(dictionary: str, border_bits: int = 1) -> cv2.aruco.ArucoDetector:
+    params = cv2.aruco.DetectorParameters()
+    params.markerBorderBits = border_bits
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    return cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)), params)
+
+
+def detect(gray: np.ndarray, dictionary: str, border_bits: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Marker corners (M, 4, 2) float32 (OpenCV's order: the marker's top-left,
+    top-right, bottom-right, bottom-left) and ids (M,) int64."""
+    corners, ids, _ = detector(dictionary, border_bits).detectMarkers(gray)
+    if ids is None or len(ids) == 0:
+        return np.zeros((0, 4, 2), np.float32), np.zeros(0, np.int64)
+    return np.asarray(corners, np.float32).reshape(-1, 4, 2), ids.reshape(-1).astype(np.int64)
+
+
+class Markers:
+    """The markers of one image, detected on first use per (dictionary, border bits)."""
+
+    def __init__(self, gray: np.ndarray):
+        self.gray = gray
+        self._found: dict[tuple[str, int], tuple[np.ndarray, np.ndarray]] = {}
+
+    def all(self, dictionary: str, border_bits: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        key = (dictionary, border_bits)
+        if key not in self._found:
+            self._found[key] = detect(self.gray, dictionary, border_bits)
+        return self._found[key]
+
+    def of(self, dictionary: str, first: int, count: int, border_bits: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """The markers with ids first … first + count − 1."""
+        corners, ids = self.all(dictionary, border_bits)
+        mine = (ids >= first) & (ids < first + count)
+        return corners[mine], ids[mine]
+
+
+def why_none(gray: np.ndarray, dictionary: str, border_bits: int = 1, first: int = 0, count: int | None = None,
+             markers: Markers | None = None) -> str:
+    """Why no marker of ``dictionary`` (ids ``first`` … ``first + count − 1``) was found, in words."""
+    found = markers.all(dictionary, border_bits)[1] if markers is not None else detect(gray, dictionary, border_bits)[1]
+    if count is not None and len(found) >= 3:   # (one or two: likely specks read as markers)
+        return (f"no markers of this board (ids {first}-{first + count - 1} of {dictionary}); the image shows ids "
+                f"{_ids(found)}: another board, or check the board's first marker")
+    if len(detect(cv2.flip(gray, 1), dictionary, border_bits)[1]) >= 3:
+        return (f"its {dictionary} markers read mirrored: the board is seen from behind (through the paper) or was "
+                "printed mirrored")
+    own = FAMILY.get(dictionary[:8], dictionary)
+    for other in OTHER_DICTIONARIES:
+        if other == own:
+            continue
+        ids = detect(gray, other)[1]
+        if len(ids) >= 3:
+            return (f"no {dictionary} markers decoded, but {len(ids)} markers of {_smallest(other, ids)}: check the "
+                    "board's dictionary")
+    return f"no {dictionary} markers decoded"
+
+
+def _smallest(dictionary: str, ids: np.ndarray) -> str:
+    """The smallest dictionary of ``dictionary``'s family holding ``ids`` (DICT_6X6_1000, ids < 50: DICT_6X6_50)."""
+    if dictionary[:8] not in FAMILY:
+        return dictionary
+    size = next(n for n in (50, 100, 250, 1000) if ids.max() < n)
+    return f"{dictionary[:8]}_{size}"
+
+
+def _ids(ids: np.ndarray) -> str:
+    u = np.unique(ids)
+    return f"{u.min()}-{u.max()}" if len(u) > 1 else str(u[0])

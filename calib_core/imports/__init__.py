@@ -1,0 +1,1 @@
+"""Corner files written by other tools, read as observations."""

@@ -1,0 +1,75 @@
+"""Kalibr's AprilGrid as a board type: Kalibr's layout and numbering, found in rendered views."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from calib_core import synth
+from calib_core.board import BoardSpec
+from calib_core.detection.aprilgrid import corner_ids
+from calib_core.detection.detect_image import detect_gray
+from calib_core.errors import SettingsError
+from calib_core.synth import render_target
+
+# Kalibr's codes for tags 0-3 (kalibr_create_target_pdf, t36h11), bit 6i+j of row i, column j, set = white
+KALIBR_36H11 = (0xd5d628584, 0xd97f18b49, 0xdd280910e, 0xe479e9c98)
+
+
+def test_the_spec_reads_like_kalibrs_yaml():
+    b = BoardSpec.parse("aprilgrid:6x6:88mm:0.3")      # tagCols, tagRows, tagSize, tagSpacing
+    assert (b.cols, b.rows, b.square_size, b.tag_spacing, b.dictionary) == (6, 6, 88.0, 0.3, "DICT_APRILTAG_36h11")
+    assert b.n_corners == 144 and b.n_markers == 36
+    assert BoardSpec.from_json(b.to_json()) == b and BoardSpec.parse(b.to_spec()) == b
+    assert b.to_json()["type"] == "aprilgrid" and b.to_json()["tag_size"] == 88.0
+
+
+@pytest.mark.parametrize("spec, words", [
+    ("aprilgrid:6x6:88mm", "TAGSXxTAGSY:TAG:SPACING"), ("aprilgrid:6x6:88mm:1.5", "at most 1"),
+    ("aprilgrid:6x6:88mm:0.3:DICT_6X6_250", "AprilTags"), ("aprilgrid:30x30:88mm:0.3", "holds"),
+])
+def test_bad_aprilgrid_specs_say_what_to_do(spec, words):
+    with pytest.raises(SettingsError, match=words):
+        BoardSpec.parse(spec)
+
+
+def test_points_are_numbered_and_placed_as_kalibr_does():
+    """GridCalibrationTargetAprilgrid::createGridPoints: a 2X x 2Y lattice, row-major from
+    the bottom-left, x = (c // 2)(1 + spacing) s + (c % 2) s, y likewise."""
+    b = BoardSpec.parse("aprilgrid:6x6:88mm:0.3")
+    s, step = 88.0, 1.3 * 88.0
+    np.testing.assert_allclose(b.object_points([0, 1, 2, 12, 13, 143]),
+                               [[0, 0, 0], [s, 0, 0], [step, 0, 0], [0, s, 0], [s, s, 0], [5 * step + s, 5 * step + s, 0]])
+    # tag 7 (row 1, col 1): its lower-left point is 2*12*1 + 2 = 26; OpenCV's corners 0-3 (the
+    # marker's top-left ...) sit at the printed tag's bottom-right, bottom-left, top-left, top-right
+    np.testing.assert_array_equal(corner_ids(np.array([0, 7]), 6), [[1, 0, 12, 13], [27, 26, 38, 39]])
+
+
+def test_opencvs_apriltag_dictionary_is_kalibrs_codes_printed_turned_round():
+    """Why the corner order above: Kalibr prints each tag as OpenCV's marker turned by 180°."""
+    d = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
+    for tag, code in enumerate(KALIBR_36H11):
+        bits = (cv2.aruco.generateImageMarker(d, tag, 10, borderBits=2)[2:8, 2:8] > 127).astype(int)
+        kalibr = np.rot90([[(code >> (6 * i + j)) & 1 for j in range(6)] for i in range(6)], 2)
+        np.testing.assert_array_equal(np.rot90(bits, 2), kalibr)
+
+
+@pytest.mark.parametrize("kind", ["radial", "fisheye"])
+def test_a_rendered_aprilgrid_is_found_with_kalibrs_ids(kind):
+    spec = BoardSpec.parse("aprilgrid:6x6:40mm:0.3")
+    pts = spec.object_points(np.arange(spec.n_corners))
+    rng = np.random.default_rng(0)
+    found = 0
+    for _ in range(3):
+        # Kalibr's board faces +z of its frame (x right, y up the page): turned to face the camera
+        r = Rotation.from_rotvec(np.radians(rng.uniform(-35, 35, 3)) * [1, 1, 0.5]) * Rotation.from_rotvec([np.pi, 0, 0])
+        t = np.array([*rng.uniform(-60, 60, 2), rng.uniform(220, 300)]) - r.apply(pts.mean(axis=0))
+        img = render_target.render_boards(kind, [(spec, np.concatenate([r.as_rotvec(), t]))], rng)
+        res = detect_gray(img, spec)
+        assert res.status == "used" and res.ids is not None and res.points is not None
+        truth = synth.true_project(kind, r.apply(pts) + t)
+        e = np.linalg.norm(res.points - truth[res.ids], axis=1)
+        assert e.max() < 0.5 and np.median(e) < 0.05   # a wrong id would be a whole tag (~40 px) off
+        found += len(res.ids)
+    assert found >= 0.7 * 3 * spec.n_corners

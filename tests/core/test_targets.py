@@ -1,0 +1,165 @@
+"""Targets of several boards (freecal.target/1): the file, every board found and
+labelled in rendered images, one 3-D view of the object per image."""
+from __future__ import annotations
+
+import copy
+
+import cv2
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from calib_core import calibrate, synth
+from calib_core.board import BoardSpec
+from calib_core.detection.detect_image import detect_gray
+from calib_core.detection.targets import detect_target
+from calib_core.errors import FormatError
+from calib_core.evaluation.evaluate import evaluate
+from calib_core.synth import render_target, targets
+from calib_core.target import Target
+
+
+def corner_doc() -> dict:
+    return targets.corner().to_json()
+
+
+def test_a_target_file_round_trips_and_numbers_its_corners_board_after_board():
+    t = Target.from_json(corner_doc())
+    assert Target.from_json(t.to_json()) == t
+    assert [b.offset for b in t.boards] == [0, 64, 128] and t.n_corners == 192
+    np.testing.assert_array_equal(t.board_index([0, 63, 64, 191]), [0, 0, 1, 2])
+    # board k's corner i is the target's offset_k + i, placed by the board's pose
+    b = t.boards[1]
+    np.testing.assert_allclose(t.object_points([64 + 10]), b.in_object(b.spec.object_points([10])))
+    assert all(abs(p[a]) < 1e-9 for p, a in zip(t.object_points([0, 64, 128]), (2, 0, 1), strict=True))
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda d: d["boards"][1]["board"].update(first_marker=20), "share markers 20-39"),
+    (lambda d: d["boards"][0].pop("tvec"), "both rvec and tvec"),
+    (lambda d: d["boards"][0].update(rvec=[0, 0]), "three finite numbers"),
+    (lambda d: d["boards"][0]["board"].update(units="m"), "differs from the target's"),
+    (lambda d: d["boards"][2].update(name="floor"), "appears twice"),
+    (lambda d: d.update(format="freecal.observations/1"), "not a freecal target"),
+    (lambda d: d["boards"][0]["board"].update(type="dots"), "boards\\[0\\].board.type"),
+])
+def test_a_bad_target_file_says_what_is_wrong(change, words):
+    doc = copy.deepcopy(corner_doc())
+    change(doc)
+    with pytest.raises(FormatError, match=words):
+        Target.from_json(doc)
+
+
+def test_a_board_without_a_pose_is_loose():
+    doc = corner_doc()
+    del doc["boards"][2]["rvec"], doc["boards"][2]["tvec"]
+    t = Target.from_json(doc)
+    assert [b.fixed for b in t.boards] == [True, True, False]
+    assert "rvec" not in t.to_json()["boards"][2]
+
+
+def _errors(found_ids, found_pts, truth_ids, truth_uv):
+    """Distance of each found corner to the true corner of the same id (inf: no such visible corner)."""
+    truth = dict(zip(truth_ids.tolist(), truth_uv, strict=True))
+    return np.array([np.linalg.norm(p - truth[i]) if i in truth else np.inf
+                     for i, p in zip(found_ids.tolist(), found_pts, strict=True)])
+
+
+@pytest.mark.slow
+def test_every_board_of_a_rendered_room_corner_is_found_with_its_own_ids():
+    """Three ChArUco boards of one dictionary (ids 0-39, 40-79, 80-119) through the
+    protocol's fisheye: each board seen well is found, every corner under its
+    target id and where the truth has it."""
+    t = targets.corner()
+    rng = np.random.default_rng(3)
+    for pose in targets.corner_poses(2, rng):
+        res = detect_target(render_target.render_target("fisheye", t, pose, rng), t)
+        assert res.status == "used" and res.ids is not None and res.points is not None
+        e = _errors(res.ids, res.points, *targets.seen("fisheye", t, pose, max_angle_deg=89.0))
+        assert e.max() < 0.5 and np.median(e) < 0.05
+        clear, _ = targets.seen("fisheye", t, pose, max_angle_deg=60.0)
+        board = t.board_index(clear)
+        seen_boards = {t.boards[k].name for k in np.unique(board) if np.sum(board == k) >= 15}
+        found = {h.label for h in res.boards if h.placed and h.n_corners}
+        assert seen_boards <= found
+        assert np.isin(clear, res.ids).mean() > 0.85
+
+
+@pytest.mark.slow
+def test_a_rendered_room_corner_calibrates_the_lens_as_well_as_its_boards_one_by_one(tmp_path):
+    """Twelve rendered views, detected as one object: the 3-D calibration finds the
+    true camera, and predicts the hold-out views within 10 % of the same corners
+    calibrated as planar views, one per board (the same corner count)."""
+    from calib_core.detection.detect import detect_images
+
+    t = targets.corner()
+    rng = np.random.default_rng(0)
+    for k, pose in enumerate(targets.corner_poses(12, rng)):
+        cv2.imwrite(str(tmp_path / f"corner_{k:02d}.png"), render_target.render_target("radial", t, pose, rng))
+    obs = detect_images(tmp_path, t).observations
+    assert obs is not None and len(obs.views) == 12 and obs.extra["target"]["format"] == "freecal.target/1"
+    solid = calibrate(obs, "zhang")
+    fx, fy, cx, cy = synth.INTRINSICS
+    np.testing.assert_allclose(solid.model.intrinsics[:4], [fx, fy, cx, cy], rtol=2e-3)
+    holdout = synth.generate("radial").holdout
+    planar = calibrate(t.split(obs), "zhang")
+    assert evaluate(solid, holdout)["rmse"] <= 1.1 * evaluate(planar, holdout)["rmse"]
+
+
+def _chessboard_corner(sizes) -> Target:
+    doc = corner_doc()
+    for k, (cols, rows) in enumerate(sizes):
+        doc["boards"][k]["board"] = {"type": "chessboard", "cols": cols, "rows": rows, "square_size": 40.0}
+    return Target.from_json(doc)
+
+
+@pytest.mark.slow
+def test_chessboards_are_placed_only_where_the_image_tells_which_they_are():
+    pose = synth.look_at_pose(np.full(3, 700 / np.sqrt(3)), np.full(3, 130.0), 0.5)  # all three boards, whole
+    # a 6x5 and a 5x4 board: one of each size, not square, odd corner sums: placed on the object
+    t = _chessboard_corner([(6, 5), (5, 4)])
+    res = detect_target(render_target.render_target("radial", t, pose), t)
+    placed = {h.label: h.n_corners for h in res.boards if h.placed}
+    assert placed["floor"] == 30 and placed["wall x"] == 20 and placed["wall y"] > 40
+    e = _errors(res.ids, res.points, *targets.seen("radial", t, pose, max_angle_deg=89.0))
+    assert e.max() < 0.5
+    # two 6x5 boards: which is which cannot be told, each becomes a planar view of its own
+    t = _chessboard_corner([(6, 5), (6, 5)])
+    res = detect_target(render_target.render_target("radial", t, pose), t)
+    own = [h for h in res.boards if not h.placed and h.n_corners]
+    assert sorted(h.label for h in own) == ["chessboard 6x5 #1", "chessboard 6x5 #2"]
+    assert all("2 chessboards of this size" in h.reason for h in own)
+
+
+def _charuco_view(flip: bool = False) -> np.ndarray:
+    spec = targets.corner().boards[0].spec
+    pose = np.concatenate([Rotation.from_rotvec([0.3, -0.2, 0.1]).as_rotvec(), [-180.0, -180.0, 450.0]])
+    img = render_target.render_boards("radial", [(spec, pose)])
+    return cv2.flip(img, 1) if flip else img
+
+
+def test_tags_of_another_dictionary_and_mirrored_boards_are_named_as_such():
+    img = _charuco_view()
+    right = BoardSpec.parse("charuco:9x9:40mm:30mm:DICT_5X5_250")
+    assert detect_gray(img, right).status == "used"
+    wrong = detect_gray(img, BoardSpec.parse("charuco:9x9:40mm:30mm:DICT_4X4_250"))
+    assert wrong.status == "rejected" and "markers of DICT_5X5_50" in wrong.reason and "dictionary" in wrong.reason
+    mirrored = detect_gray(_charuco_view(flip=True), right)
+    assert mirrored.status == "rejected" and "mirrored" in mirrored.reason
+    other_ids = detect_gray(img, BoardSpec.from_json({**right.to_json(), "first_marker": 100}))
+    assert "ids 100-139" in other_ids.reason and "ids 0-39" in other_ids.reason
+
+
+def test_the_example_in_the_targets_page_is_a_valid_target():
+    import json
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "targets.md").read_text()
+    block = re.search(r'```json\n(\{\n  "format": "freecal.target/1".*?)```', text, re.S)
+    assert block is not None
+    t = Target.from_json(json.loads(block.group(1)))
+    corner = targets.corner()
+    assert [b.fixed for b in t.boards] == [True, True, False]
+    for ours, theirs in zip(t.boards[:2], corner.boards[:2], strict=True):   # the poses are the rendered target's
+        np.testing.assert_allclose(ours.pose, theirs.pose, atol=1e-4)

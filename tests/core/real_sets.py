@@ -13,7 +13,6 @@ from ..conftest import shared_data
 
 SETS = {  # name → (folder, board, images)
     "gopro": ("gopro-hero3-wide-15x9", "chessboard:15x9:26mm", "*.JPG"),
-    "charuco": ("opencv-charuco-5x7", "charuco:5x7:40mm:20mm:DICT_6X6_250", "img_*.jpg"),
 }
 
 

@@ -1,5 +1,5 @@
 """The exports on real photo sets (slow: each detects and calibrates a set):
-the calibrations that used to be refused now export and rectify, and a
+the calibration that used to be refused now exports and rectifies, and a
 B-spline calibration of a GoPro reaches mrcal and COLMAP within the error
 they report."""
 from __future__ import annotations
@@ -18,7 +18,9 @@ from .test_export_consumers import check_against
 pytestmark = pytest.mark.slow
 
 
-@pytest.mark.parametrize("name,method,distortion", [("gopro", "zhang", "plumb_bob"), ("charuco", "fisheye", "equidistant")])
+# OpenCV's ChArUco sample under ``fisheye`` folded over too, but its four views are now refused as
+# degenerate before a calibration is made; its coefficients are test_rectify_fallback's CHARUCO_FISHEYE.
+@pytest.mark.parametrize("name,method,distortion", [("gopro", "zhang", "plumb_bob")])
 def test_ros_and_undistort_of_the_calibrations_once_refused(name, method, distortion, tmp_path, capsys):
     cal = real_sets.calibration(name, method)
     done = export(cal, "ros")

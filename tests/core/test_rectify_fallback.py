@@ -5,7 +5,8 @@ never paints the folded sheet's ghosts.
 The two lenses are the calibrations that used to be refused, written out: the
 GoPro Hero3 set under ``zhang`` (5 coefficients: the polynomial folds back 62°
 off axis, before the photo's sides) and OpenCV's ChArUco sample under
-``fisheye`` (four views: Kannala–Brandt coefficients that fold 28° off axis)."""
+``fisheye`` (four views, as calibrated before such sets were refused as degenerate: Kannala–Brandt
+coefficients that fold 28° off axis)."""
 from __future__ import annotations
 
 import numpy as np

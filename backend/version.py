@@ -1,12 +1,6 @@
-"""freecal's version, from the installed package's metadata (``freecal --version``, reports)."""
+"""freecal's version (``freecal --version``, reports): the one the calibrations record."""
 from __future__ import annotations
 
+from calib_core.provenance import freecal_version as version
 
-def version() -> str:
-    from importlib.metadata import PackageNotFoundError
-    from importlib.metadata import version as installed
-
-    try:
-        return installed("freecal")
-    except PackageNotFoundError:  # run from a source tree that was never installed
-        return "unknown (not installed: pip install -e .)"
+__all__ = ["version"]

@@ -46,6 +46,8 @@ class Calibration:
     metrics: dict[str, Any] = field(default_factory=dict)
     settings: dict[str, Any] = field(default_factory=dict)
     diagnostics: dict[str, Any] = field(default_factory=dict)
+    # where it came from (``provenance.py``): version, date, observations' hash, tvec units
+    provenance: dict[str, Any] = field(default_factory=dict)
 
     # ---- using it -------------------------------------------------------------
     def project(self, points: np.ndarray, rvec=None, tvec=None) -> np.ndarray:
@@ -86,7 +88,7 @@ class Calibration:
 
     # ---- JSON ------------------------------------------------------------------
     def to_json(self) -> dict[str, Any]:
-        return {
+        doc = {
             "format": FORMAT,
             "image_size": list(self.image_size),
             "model": self.method,
@@ -110,6 +112,9 @@ class Calibration:
             "settings": json_safe(self.settings),
             "diagnostics": json_safe(self.diagnostics),
         }
+        if self.provenance:
+            doc["provenance"] = json_safe(self.provenance)
+        return doc
 
     @classmethod
     def from_json(cls, doc: Any) -> Calibration:
@@ -157,9 +162,11 @@ class Calibration:
                 ))
             except (KeyError, TypeError, ValueError, OverflowError, AttributeError):
                 raise FormatError(f"views[{k}]: expected name, rvec [3 numbers] and tvec [3 numbers]") from None
+        provenance = doc.get("provenance")  # an extra field: kept when it is ours, ignored otherwise
         return cls(model, (image_size[0], image_size[1]), str(doc.get("model", dist["type"])), views,
                    list(doc.get("dropped_views", [])), dict(doc.get("metrics", {})),
-                   dict(doc.get("settings", {})), dict(doc.get("diagnostics", {})))
+                   dict(doc.get("settings", {})), dict(doc.get("diagnostics", {})),
+                   dict(provenance) if isinstance(provenance, dict) else {})
 
     @classmethod
     def load(cls, path: str | Path) -> Calibration:

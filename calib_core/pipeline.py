@@ -20,6 +20,7 @@ from .fitting.solve import Data, SolveSettings, levenberg_marquardt
 from .methods import METHODS
 from .methods.common import Progress, no_progress, settings_from
 from .observations import Observations
+from .provenance import provenance
 
 MIN_VIEWS = 3
 MIN_POINTS_PER_VIEW = 6
@@ -151,7 +152,8 @@ def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Cal
         diagnostics["excluded_points"]["outside_model_reason"] = fit.excluded_reason
     settings_out = {"method": method, "outlier_sigma": outlier_sigma, **fit.settings}
     progress("done", 1.0)
-    return Calibration(res.model, obs.image_size, method, views, dropped, summary, settings_out, diagnostics)
+    return Calibration(res.model, obs.image_size, method, views, dropped, summary, settings_out, diagnostics,
+                       provenance(observations))
 
 
 def coverage_hull(pixels: np.ndarray) -> list[list[float]]:

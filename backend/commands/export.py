@@ -1,80 +1,126 @@
-"""freecal export CAL.json --to opencv|ros|mrcal|opencv5|opencv8|opencv14|kb4 [--model M] -o FILE"""
+"""freecal export CAL.json --to opencv|ros|mrcal|colmap|nerfstudio|kalibr|MODEL [--model M] -o FILE
+[--observations OBS.json] [--error-map MAP.npz] [--uncertainty [FILE]] [--alpha A | --keep K | --focal F] [--json]"""
 from __future__ import annotations
 
 import io
+import json
 
 import numpy as np
 
 from calib_core.errors import SettingsError
-from calib_core.exports import LEAN_MODELS, cameramodel, exact_name, fit_lean, lean_yaml, parametric_part, ros_yaml
-from calib_core.exports.lean_fit import save_error_map
+from calib_core.exports import LEAN_MODELS, MODELS, TARGETS, export
+from calib_core.exports.lean_fit import FitError, save_error_map
 
 from .inputs import load_calibration, load_observations, one_stdin
 from .output import claim_stdout, print_json
 from .outputs import Outputs
+from .undistort import ALPHA_HELP, FOCAL_HELP, KEEP, chosen_camera
 
-FORMATS = ("opencv", "ros", "mrcal")
-DEFAULT_MODEL = {"opencv": "opencv8", "ros": "opencv8", "mrcal": "opencv8"}
+CONSUMERS = "; ".join(f"{t.name}: {t.label} ({', '.join(dict.fromkeys(t.models.values()))})" for t in TARGETS.values())
 
 
 def register(sub) -> None:
-    p = sub.add_parser("export", help="export a calibration for OpenCV, ROS or mrcal (lean-model fit)",
+    p = sub.add_parser("export", help="export a calibration for OpenCV, ROS, mrcal, COLMAP, nerfstudio or Kalibr",
                        description="Write a calibration in another tool's format. A calibration that is not "
-                                   "already the chosen lean model is fitted by one over the image, and the fit "
-                                   "error (what the export loses) is printed and stored.")
+                                   "already one of the tool's models is fitted by the closest one, and the fit "
+                                   "error (what the export loses) over the covered region and the whole image is "
+                                   "printed and stored. " + CONSUMERS)
     p.add_argument("calibration", help="freecal.calibration/1 JSON file (- : standard input)")
-    p.add_argument("--to", required=True, choices=FORMATS + tuple(LEAN_MODELS),
-                   help="opencv (FileStorage YAML), ros (camera_info YAML), mrcal (.cameramodel); "
-                        "a model name (opencv8, kb4, ...) means opencv with that model")
-    p.add_argument("--model", choices=("auto",) + tuple(LEAN_MODELS), default="auto",
-                   help="lean model (auto: the calibration's own if it is one, else opencv8)")
+    p.add_argument("--to", required=True, choices=tuple(TARGETS) + tuple(LEAN_MODELS),
+                   help="the tool (" + ", ".join(TARGETS) + "); a model name (opencv8, kb4, ...) means opencv "
+                        "with that model")
+    p.add_argument("--model", choices=("auto",) + MODELS, default="auto",
+                   help="the exported model (auto: the calibration's own if the tool knows it, else the closest "
+                        "of the tool's models)")
     p.add_argument("--observations", help="fit only over the convex hull of these corners (freecal.observations/1)")
-    p.add_argument("--error-map", help="write the fit error map (.npz: error_px, u, v)")
+    p.add_argument("--error-map", help="write the fit error map (.npz: error_px, covered, u, v; - : standard output)")
+    p.add_argument("--uncertainty", nargs="?", const="", metavar="FILE",
+                   help="write the projection-uncertainty sidecar (JSON; default: OUTPUT.uncertainty.json); "
+                        "needs --observations")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--keep", choices=sorted([*KEEP, "covered"]),
+                   help="--to ros: the rectified camera P keeps valid pixels (default), all, or the covered region")
+    g.add_argument("--alpha", type=float, help="--to ros: the rectified camera P, " + ALPHA_HELP)
+    g.add_argument("--focal", type=float, help="--to ros: the rectified camera P, " + FOCAL_HELP)
     p.add_argument("-o", "--output", required=True, help="output file (- : standard output)")
-    p.add_argument("--json", action="store_true", help="print what was written and the fit error as JSON")
+    p.add_argument("--json", action="store_true", help="print what was written and the fit errors as JSON")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
+    fmt, model = (args.to, args.model) if args.to in TARGETS else ("opencv", args.to)
+    if args.to not in TARGETS and args.model not in ("auto", args.to):
+        raise SettingsError(f"--to {args.to} already names the model; drop --model {args.model}")
+    target = TARGETS[fmt]
+    if model != "auto" and model not in target.models:
+        choices = " | ".join(f"{m} ({name})" for m, name in target.models.items())
+        raise SettingsError(f"--model {model}: {target.label} has no such model; choose --model {choices}, "
+                            "or leave --model out for the closest")
+    if (args.keep or args.alpha is not None or args.focal is not None) and fmt != "ros":
+        raise SettingsError("--keep, --alpha and --focal choose ROS's rectified camera (P); they apply to --to ros only")
+    if args.uncertainty is not None and not args.observations:
+        raise SettingsError("--uncertainty needs --observations OBS.json (the corners the calibration was fitted to)")
+    if args.uncertainty == "" and args.output == "-":
+        raise SettingsError("--uncertainty: name the file (--uncertainty FILE) when -o is standard output")
     outputs = Outputs()
-    target = outputs.file(args.output, "-o", "camera.yaml")
+    written = outputs.file(args.output, "-o", target.file_name)
     error_map = outputs.file(args.error_map, "--error-map", "error_map.npz")
+    sidecar = None if args.uncertainty is None else outputs.file(
+        args.uncertainty or f"{args.output}.uncertainty.json", "--uncertainty", "camera.uncertainty.json")
     one_stdin(args.calibration, args.observations)
     if args.json:
         claim_stdout("--json")
-    cal = load_calibration(args.calibration)
-    cal = parametric_part(cal) or cal  # a hybrid with a held zero field is its core, exactly
-    fmt, model = (args.to, args.model) if args.to in FORMATS else ("opencv", args.to)
-    if args.to not in FORMATS and args.model != "auto" and args.model != args.to:
-        raise SettingsError(f"--to {args.to} already names the model; drop --model {args.model}")
-    if model == "auto":
-        model = exact_name(cal) or DEFAULT_MODEL[fmt]
-    covered = None
-    if args.observations:
-        obs = load_observations(args.observations)
-        covered = np.concatenate([np.asarray(v.image_points, dtype=np.float64) for v in obs.views])
-    fit = fit_lean(cal, model, covered=covered)
-    if fmt == "opencv":
-        text = lean_yaml(fit, cal)
-    elif fmt == "ros":
-        text = ros_yaml(fit)
-    else:
-        text = cameramodel(fit)
+    source = load_calibration(args.calibration)
+    obs = load_observations(args.observations) if args.observations else None
+    covered = None if obs is None else np.concatenate([np.asarray(v.image_points, dtype=np.float64) for v in obs.views])
+    done = export(source, fmt, model, covered,
+                  rectify=lambda fit: chosen_camera(fit.calibration, args.keep, args.alpha, args.focal, None, fit.region))
+    uncertainty = None
+    if sidecar is not None:
+        from calib_core.exports.sidecar import uncertainty_sidecar
+        from calib_core.report.tables import uncertainty_map
+
+        uncertainty = uncertainty_sidecar(done, source, uncertainty_map(source, obs), str(written))
     with outputs.writing():
-        assert target is not None  # -o is required
-        target.write(text)
+        assert written is not None  # -o is required
+        written.write(done.text)
         if error_map is not None:
             npz = io.BytesIO()
-            save_error_map(npz, fit)
+            save_error_map(npz, done.fit)
             error_map.write(npz.getvalue())
+        if sidecar is not None:
+            sidecar.write(json.dumps(uncertainty) + "\n")
+    fit = done.fit
+    files = [str(f) for f in (written, error_map, sidecar) if f is not None]
     if args.json:
-        print_json({"format": fmt, "model": model, "exact": fit.exact, "output": str(target),
-                    "error_map": None if error_map is None else str(error_map),
-                    "fit_error": None if fit.exact else {"n_samples": fit.n_samples, "rms": fit.rms,
-                                                         "p99": fit.p99, "max": fit.max, "units": "px"}})
+        print_json({"format": fmt, "model": fit.name, "consumer_model": done.consumer_model, "exact": fit.exact,
+                    "output": str(written), "error_map": None if error_map is None else str(error_map),
+                    "uncertainty": None if sidecar is None else str(sidecar),
+                    "fit_error": None if fit.exact else {"covered": fit.covered.to_json(), "image": fit.image.to_json(),
+                                                         "n_beyond_reach": fit.n_beyond, "units": "px"},
+                    "candidates": [{"model": f.name, "covered_rms_px": f.covered.rms, "image_rms_px": f.image.rms}
+                                   for f in done.tried],
+                    "rectified_camera": None if done.camera is None else done.camera.to_json()})
         return 0
-    what = "exact (the calibration is this model)" if fit.exact else (
-        f"fit error over {fit.n_samples} image samples: rms {fit.rms:.4f} px, p99 {fit.p99:.4f} px, max {fit.max:.4f} px")
-    print(f"{fmt} / {model}: {what}")
-    print(f"wrote {target}" + (f" and {error_map}" if error_map is not None else ""))
+    if fit.exact:
+        print(f"{fmt} / {done.consumer_model} ({fit.name}): exact, the calibration is this model")
+    else:
+        choice = "" if not done.tried else ", the closest of " + ", ".join(
+            f"{f.name} (rms {f.covered.rms:.4g} px covered, {f.image.rms:.4g} px image)" for f in done.tried
+        ) + "; another with --model"
+        print(f"{fmt} / {done.consumer_model} ({fit.name}): fitted to the {fit.fitted_to} calibration{choice}")
+        print(f"fit error, covered region: {_error(fit.covered)}")
+        beyond = f" ({fit.n_beyond} samples past the model's reach)" if fit.n_beyond else ""
+        print(f"fit error, whole image: {_error(fit.image)}{beyond}")
+    if fmt == "mrcal" and fit.region is None:
+        print("note: the calibration records no covered region, so the model has no valid_intrinsics_region; "
+              "give --observations OBS.json (its corners) to write one")
+    if done.camera is not None:
+        print(f"rectified camera (P): focal {done.camera.focal:.3f} px, centre ({done.camera.cx:.3f}, "
+              f"{done.camera.cy:.3f})" + (f"; note: {done.camera.note}" if done.camera.note else ""))
+    print("wrote " + ", ".join(files))
     return 0
+
+
+def _error(e: FitError) -> str:
+    return f"rms {e.rms:.4f} px, p99 {e.p99:.4f} px, max {e.max:.4f} px over {e.n} samples"

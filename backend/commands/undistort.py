@@ -1,4 +1,4 @@
-"""freecal undistort CAL.json [IMAGES...] -o DIR [--alpha A | --keep valid|all | --focal F] [--size WxH] [--maps]"""
+"""freecal undistort CAL.json [IMAGES...] -o DIR [--alpha A | --keep valid|all|covered | --focal F] [--size WxH] [--maps]"""
 from __future__ import annotations
 
 import json
@@ -6,7 +6,9 @@ from pathlib import Path
 
 from calib_core.errors import SettingsError
 from calib_core.products.rectify import (
+    RectifiedCamera,
     RectifyError,
+    covered_camera,
     fixed_camera,
     rectified_camera,
     rectify_image,
@@ -18,7 +20,11 @@ from .inputs import load_calibration
 from .output import claim_stdout, print_json
 from .outputs import Outputs
 
-KEEP = {"valid": 0.0, "all": 1.0}
+KEEP = {"valid": 0.0, "all": 1.0}  # and "covered": the corners' region, covered_camera
+KEEP_HELP = ("valid: only pixels with a source (default); all: every photo pixel; covered: only the region the "
+             "corners covered (where the lens was measured)")
+ALPHA_HELP = "between 0 (valid) and 1 (all), like OpenCV's alpha / fisheye balance"
+FOCAL_HELP = "a given focal length [px] of the rectified camera (centred)"
 
 
 def register(sub) -> None:
@@ -29,9 +35,9 @@ def register(sub) -> None:
     p.add_argument("images", nargs="*", help="photos to rectify (the calibration's image size)")
     p.add_argument("-o", "--output", required=True, help="output directory")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--keep", choices=sorted(KEEP), help="valid: only pixels with a source (default); all: every photo pixel")
-    g.add_argument("--alpha", type=float, help="between 0 (valid) and 1 (all), like OpenCV's alpha / fisheye balance")
-    g.add_argument("--focal", type=float, help="a given focal length [px] of the rectified camera (centred)")
+    g.add_argument("--keep", choices=sorted([*KEEP, "covered"]), help=KEEP_HELP)
+    g.add_argument("--alpha", type=float, help=ALPHA_HELP)
+    g.add_argument("--focal", type=float, help=FOCAL_HELP)
     p.add_argument("--size", help="rectified image size WxH (default: the photo's)")
     p.add_argument("--maps", action="store_true", help="also write the maps (always written when no images are given)")
     p.add_argument("--json", action="store_true", help="print the rectified camera and the files written as JSON")
@@ -48,6 +54,17 @@ def parse_size(text: str | None) -> tuple[int, int] | None:
     return w, h
 
 
+def chosen_camera(cal, keep: str | None, alpha: float | None, focal: float | None,
+                  size: tuple[int, int] | None, hull=None) -> RectifiedCamera:
+    """The rectified camera the flags ask for (--keep, --alpha, --focal: one at most; default valid);
+    ``hull``: the covered region for --keep covered (default: the calibration's record)."""
+    if focal is not None:
+        return fixed_camera(focal, size or cal.image_size)
+    if keep == "covered":
+        return covered_camera(cal, size, hull)
+    return rectified_camera(cal, alpha if alpha is not None else KEEP[keep or "valid"], size)
+
+
 def run(args) -> int:
     import cv2
 
@@ -57,12 +74,7 @@ def run(args) -> int:
     if args.json:
         claim_stdout("--json")
     cal = load_calibration(args.calibration)
-    size = parse_size(args.size)
-    if args.focal is not None:
-        camera = fixed_camera(args.focal, size or cal.image_size)
-    else:
-        alpha = args.alpha if args.alpha is not None else KEEP[args.keep or "valid"]
-        camera = rectified_camera(cal, alpha, size)
+    camera = chosen_camera(cal, args.keep, args.alpha, args.focal, parse_size(args.size))
     maps = undistort_maps(cal, camera)
     with outputs.writing():
         out = folder.staging()  # everything lands in the folder together at the end
@@ -84,6 +96,8 @@ def run(args) -> int:
         return 0
     print(f"rectified camera: focal {camera.focal:.3f} px, centre ({camera.cx:.3f}, {camera.cy:.3f}), "
           f"{camera.width} x {camera.height}")
+    if camera.note:
+        print(f"note: {camera.note}")
     for path in files:
         print(f"wrote {path}")
     return 0

@@ -7,13 +7,17 @@ unproject them (``Calibration.rays``, principal branch) and, for the pinhole
 OpenCV models, less than ``MAX_ANGLE_DEG`` off axis; the lean model is fitted
 to reproduce those pixels by our Levenberg–Marquardt (``solve.py``) with the
 pose held at identity: a direct least-squares fit of the projection. The fit
-error is ``|lean(ray) − calibration(ray)|`` in pixels at each sample.
+error is ``|lean(ray) − calibration(ray)|`` in pixels at each sample, reported
+twice (``evaluate``): over the covered region the fit was made on, and over
+the whole image, wherever the calibration can unproject and the exported
+model can represent the ray (``REACH_DEG``: a pinhole-normalised model stops
+short of 90°). Any exported model (mrcal's splined one too) is scored so.
 """
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -29,41 +33,101 @@ LEAN_MODELS: dict[str, tuple[str, int]] = {
 }
 GRID = (64, 80)  # samples across, down (W × H = 1024 × 1280 → every 16 px)
 MAX_ANGLE_DEG = 85.0  # beyond this a pinhole-normalised OpenCV fit is hopeless
+# How far off axis each exported model can see a ray at all: OpenCV's models
+# divide by z (85°, as the fit), Kannala–Brandt as OpenCV/COLMAP/Kalibr compute
+# it takes θ = atan(r) of x/z (in front of the camera only), mrcal's splined
+# stereographic model reaches almost all the way round.
+REACH_DEG = {"opencv": MAX_ANGLE_DEG, "fisheye": 89.9, "splined": 179.0}
+
+
+class Projector(Protocol):
+    """What an exported model must do: camera-frame rays (N, 3) → pixels (N, 2)."""
+
+    def project(self, rays: np.ndarray) -> np.ndarray: ...
 
 
 class LeanFitError(CalibError):
     """The lean model cannot be fitted to this calibration."""
 
 
+@dataclass(frozen=True)
+class FitError:
+    """``|export(ray) − calibration(ray)|`` (px) over ``n`` samples: rms, 99th percentile, max."""
+
+    rms: float
+    p99: float
+    max: float
+    n: int
+
+    @classmethod
+    def of(cls, err: np.ndarray) -> FitError:
+        e = np.asarray(err, dtype=np.float64)
+        if not len(e):
+            return cls(0.0, 0.0, 0.0, 0)
+        return cls(float(np.sqrt(np.mean(e * e))), float(np.percentile(e, 99)), float(e.max()), int(len(e)))
+
+    def to_json(self) -> dict[str, Any]:
+        return {"rms_px": self.rms, "p99_px": self.p99, "max_px": self.max, "n_samples": self.n}
+
+
 @dataclass
 class LeanFit:
-    """A lean model fitted to a calibration, and how far it strays.
+    """A model fitted to a calibration for export, and how far it strays.
 
     ``error_map`` (grid_h, grid_w): pixel error at the grid's photo pixels
-    ``u`` (grid_w,), ``v`` (grid_h,); NaN where no ray was sampled."""
+    ``u`` (grid_w,), ``v`` (grid_h,), over the whole image; NaN where the
+    calibration cannot unproject or the model cannot represent the ray.
+    ``covered_mask`` (grid_h, grid_w): the samples of the covered region (the fit's)."""
 
     name: str
-    calibration: Calibration  # the lean model in a Calibration (no views)
-    rms: float
-    max: float
-    p99: float
-    n_samples: int
+    model: Any  # a Projector: a ParametricModel (OpenCV, Kannala–Brandt) or splined.SplinedStereographic
+    image_size: tuple[int, int]
+    fitted_to: str  # the calibration's method
+    covered: FitError  # over the covered region (the corners' hull), where the fit was made
+    image: FitError  # over the whole image, where the model can represent the ray
+    n_beyond: int  # image samples the calibration sees but the model cannot represent (past its reach)
     u: np.ndarray
     v: np.ndarray
     error_map: np.ndarray
+    covered_mask: np.ndarray
     exact: bool = False  # the calibration already was this model: nothing fitted
+    region: np.ndarray | None = None  # (M, 2) the covered region's polygon in pixels, if known
+
+    # The covered region's numbers are the headline (what a user of the export can rely on).
+    @property
+    def rms(self) -> float:
+        return self.covered.rms
 
     @property
-    def model(self) -> ParametricModel:
-        """The lean model itself, OpenCV's or Kannala–Brandt's: what exporters write."""
-        model = self.calibration.model
-        if not isinstance(model, ParametricModel):  # fit_lean only ever makes parametric ones
-            raise TypeError(f"a lean fit holds a parametric model, not {model.kind!r}")
-        return model
+    def max(self) -> float:
+        return self.covered.max
+
+    @property
+    def p99(self) -> float:
+        return self.covered.p99
+
+    @property
+    def n_samples(self) -> int:
+        return self.covered.n
+
+    @property
+    def parametric(self) -> ParametricModel:
+        """The model as OpenCV's or Kannala–Brandt's: what the OpenCV-family exporters write."""
+        if not isinstance(self.model, ParametricModel):
+            raise TypeError(f"{self.name} is not a parametric model")
+        return self.model
+
+    @property
+    def calibration(self) -> Calibration:
+        """The parametric model in a Calibration (no views)."""
+        return Calibration(self.parametric, self.image_size, self.name,
+                           metrics={"fit_rms_px": self.rms}, settings={"fitted_to": self.fitted_to})
 
     def summary(self) -> dict[str, Any]:
-        return {"model": self.name, "fit_rms_px": self.rms, "fit_max_px": self.max, "fit_p99_px": self.p99,
-                "n_samples": self.n_samples, "exact": self.exact}
+        return {"model": self.name, "exact": self.exact, "fitted_to": self.fitted_to,
+                "covered": self.covered.to_json(), "image": self.image.to_json(), "n_beyond_reach": self.n_beyond,
+                # the covered region's, under the names earlier versions wrote
+                "fit_rms_px": self.rms, "fit_max_px": self.max, "fit_p99_px": self.p99, "n_samples": self.n_samples}
 
 
 def parametric_part(cal: Calibration) -> Calibration | None:
@@ -94,15 +158,86 @@ def sample_grid(cal: Calibration, grid: tuple[int, int] = GRID, max_angle_deg: f
     u, v = np.linspace(0, w - 1, grid[0]), np.linspace(0, h - 1, grid[1])
     uu, vv = np.meshgrid(u, v)
     rays = cal.rays(np.column_stack([uu.ravel(), vv.ravel()]))
-    ok = np.all(np.isfinite(rays), axis=1) & (rays[:, 2] > np.cos(np.radians(max_angle_deg)))
+    ok = reachable(rays, max_angle_deg)
     if covered is not None:
-        from scipy.spatial import Delaunay
-
-        pts = np.asarray(covered, dtype=np.float64).reshape(-1, 2)
-        if len(pts) < 3:
-            raise LeanFitError("covered: need at least 3 observed pixels to bound the fit region")
-        ok &= Delaunay(pts).find_simplex(np.column_stack([uu.ravel(), vv.ravel()])) >= 0
+        ok &= inside_hull(np.column_stack([uu.ravel(), vv.ravel()]), covered)
     return u, v, rays, ok
+
+
+def reachable(rays: np.ndarray, max_angle_deg: float) -> np.ndarray:
+    """(N,) rays that exist (finite) and lie less than ``max_angle_deg`` off axis."""
+    with np.errstate(invalid="ignore"):
+        return np.all(np.isfinite(rays), axis=1) & (rays[:, 2] > np.cos(np.radians(max_angle_deg)))
+
+
+def inside_hull(pixels: np.ndarray, covered: np.ndarray) -> np.ndarray:
+    """(N,) pixels inside the convex hull of the ``covered`` pixels (M, 2)."""
+    from scipy.spatial import Delaunay
+
+    pts = np.asarray(covered, dtype=np.float64).reshape(-1, 2)
+    if len(pts) < 3:
+        raise LeanFitError("covered: need at least 3 observed pixels to bound the fit region")
+    return Delaunay(pts).find_simplex(pixels) >= 0
+
+
+def covered_pixels(cal: Calibration, covered: np.ndarray | None) -> np.ndarray | None:
+    """The pixels bounding the covered region: ``covered`` if given, else the hull the
+    calibration recorded (``diagnostics.coverage_hull``), else None (the whole image)."""
+    if covered is None and len(cal.diagnostics.get("coverage_hull", [])) >= 3:
+        covered = np.asarray(cal.diagnostics["coverage_hull"], dtype=np.float64)
+    return None if covered is None else np.asarray(covered, dtype=np.float64).reshape(-1, 2)
+
+
+def hull_polygon(covered: np.ndarray | None) -> np.ndarray | None:
+    """The convex hull of ``covered`` pixels as a polygon (M, 2), counter-clockwise in
+    the image (y down), not closed; None without pixels."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    if covered is None or len(covered) < 3:
+        return None
+    try:
+        return covered[ConvexHull(covered).vertices]
+    except (QhullError, ValueError):
+        return None
+
+
+def evaluate(model: Projector, cal: Calibration, name: str, reach_deg: float, exact: bool = False,
+             grid: tuple[int, int] = GRID, covered: np.ndarray | None = None) -> LeanFit:
+    """Score an exported ``model`` against ``cal`` on the photo grid: over the covered region
+    (the samples ``fit_lean`` fits, within ``MAX_ANGLE_DEG``) and over the whole image
+    (every ray the model reaches, ``reach_deg``)."""
+    covered = covered_pixels(cal, covered)
+    u, v, rays, fitted = sample_grid(cal, grid, covered=covered)
+    target = np.column_stack([a.ravel() for a in np.meshgrid(u, v)])
+    known = reachable(rays, 180.0)
+    reach = reachable(rays, reach_deg)
+    err = np.full(len(target), np.nan)
+    with np.errstate(all="ignore"):
+        err[reach] = 0.0 if exact else np.linalg.norm(model.project(rays[reach]) - target[reach], axis=1)
+    if not np.all(np.isfinite(err[fitted])):
+        raise LeanFitError(f"the fitted {name} model projects some rays of the covered region to non-finite pixels")
+    image = np.isfinite(err)
+    w, h = cal.image_size
+    return LeanFit(name, model, (int(w), int(h)), cal.method, FitError.of(err[fitted]), FitError.of(err[image]),
+                   int(np.sum(known & ~image)), u, v, err.reshape(len(v), len(u)), fitted.reshape(len(v), len(u)),
+                   exact, hull_polygon(covered))
+
+
+def reach_deg(name: str) -> float:
+    """How far off axis the model ``name`` can see (``REACH_DEG`` of its kind)."""
+    return REACH_DEG[LEAN_MODELS[name][0] if name in LEAN_MODELS else name]
+
+
+def error_at(fit: LeanFit, cal: Calibration, pixels: np.ndarray) -> np.ndarray:
+    """(N,) the export's error (px) at photo ``pixels`` (N, 2); NaN where the
+    calibration has no ray or the model cannot represent it."""
+    pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+    rays = cal.rays(pixels)
+    ok = reachable(rays, reach_deg(fit.name))
+    err = np.full(len(pixels), np.nan)
+    with np.errstate(all="ignore"):
+        err[ok] = 0.0 if fit.exact else np.linalg.norm(fit.model.project(rays[ok]) - pixels[ok], axis=1)
+    return err
 
 
 def fit_lean(cal: Calibration, name: str, grid: tuple[int, int] = GRID, covered: np.ndarray | None = None) -> LeanFit:
@@ -113,40 +248,28 @@ def fit_lean(cal: Calibration, name: str, grid: tuple[int, int] = GRID, covered:
     if name not in LEAN_MODELS:
         raise SettingsError(f"lean model: expected one of {sorted(LEAN_MODELS)}, got {name!r}")
     kind, n = LEAN_MODELS[name]
-    if covered is None and len(cal.diagnostics.get("coverage_hull", [])) >= 3:
-        covered = np.asarray(cal.diagnostics["coverage_hull"])  # where the calibration had corners
+    covered = covered_pixels(cal, covered)
     u, v, rays, ok = sample_grid(cal, grid, covered=covered)
     if ok.sum() < 50:
         raise LeanFitError(f"only {int(ok.sum())} rays of the image could be unprojected; too few to fit {name}")
     target = np.column_stack([a.ravel() for a in np.meshgrid(u, v)])
     if exact_name(cal) == name:
-        model, exact = cal.model, True
-    else:
-        k = cal.model.intrinsics.copy()
-        k[4] = 0.0  # OpenCV's models have no skew
-        start = OpenCVModel(k, np.zeros(n)) if kind == "opencv" else FisheyeModel(k, np.zeros(n))
-        candidates = [_fit(start, rays[ok], target[ok], name),
-                      _fit(_radial_start(kind, n, k, rays[ok], target[ok]), rays[ok], target[ok], name)]
-        if kind == "opencv" and n > 5:
-            # Also a nested start: from zero the rational denominator can wander into a poor
-            # minimum, and the 5-coefficient fit padded with zeros is sometimes far better
-            # (and sometimes worse): keep whichever fits best.
-            five = _fit(OpenCVModel(k, np.zeros(5)), rays[ok], target[ok], name)
-            padded = OpenCVModel(five.intrinsics, np.concatenate([five.coefficients, np.zeros(n - 5)]))
-            candidates.append(_fit(padded, rays[ok], target[ok], name))
-        with np.errstate(all="ignore"):
-            cost = [np.nansum((m.project(rays[ok]) - target[ok]) ** 2) for m in candidates]
-        model, exact = candidates[int(np.nanargmin(cost))], False
-    err = np.full(len(target), np.nan)
+        return evaluate(cal.model, cal, name, REACH_DEG[kind], True, grid, covered)
+    k = cal.model.intrinsics.copy()
+    k[4] = 0.0  # OpenCV's models have no skew
+    start = OpenCVModel(k, np.zeros(n)) if kind == "opencv" else FisheyeModel(k, np.zeros(n))
+    candidates = [_fit(start, rays[ok], target[ok], name),
+                  _fit(_radial_start(kind, n, k, rays[ok], target[ok]), rays[ok], target[ok], name)]
+    if kind == "opencv" and n > 5:
+        # Also a nested start: from zero the rational denominator can wander into a poor
+        # minimum, and the 5-coefficient fit padded with zeros is sometimes far better
+        # (and sometimes worse): keep whichever fits best.
+        five = _fit(OpenCVModel(k, np.zeros(5)), rays[ok], target[ok], name)
+        padded = OpenCVModel(five.intrinsics, np.concatenate([five.coefficients, np.zeros(n - 5)]))
+        candidates.append(_fit(padded, rays[ok], target[ok], name))
     with np.errstate(all="ignore"):
-        err[ok] = np.linalg.norm(model.project(rays[ok]) - target[ok], axis=1)
-    e = err[ok]
-    if not np.all(np.isfinite(e)):
-        raise LeanFitError(f"the fitted {name} model projects some sampled rays to non-finite pixels")
-    lean = Calibration(model, cal.image_size, name, metrics={"fit_rms_px": float(np.sqrt(np.mean(e * e)))},
-                       settings={"fitted_to": cal.method})
-    return LeanFit(name, lean, float(np.sqrt(np.mean(e * e))), float(e.max()), float(np.percentile(e, 99)),
-                   int(ok.sum()), u, v, err.reshape(len(v), len(u)), exact)
+        cost = [np.nansum((m.project(rays[ok]) - target[ok]) ** 2) for m in candidates]
+    return evaluate(candidates[int(np.nanargmin(cost))], cal, name, REACH_DEG[kind], False, grid, covered)
 
 
 def _radial_start(kind: str, n: int, k: np.ndarray, rays: np.ndarray, target: np.ndarray):
@@ -194,5 +317,10 @@ def _fit(model, rays: np.ndarray, target: np.ndarray, name: str):
 
 
 def save_error_map(path, fit: LeanFit) -> None:
-    """``.npz`` with ``error_px`` (gh, gw), ``u`` (gw,), ``v`` (gh,) and the summary numbers."""
-    np.savez_compressed(path, error_px=fit.error_map, u=fit.u, v=fit.v, rms=fit.rms, max=fit.max, p99=fit.p99)
+    """``.npz`` with ``error_px`` (gh, gw) over the whole image (NaN where the model has
+    no ray), ``covered`` (gh, gw) the covered region's samples, ``u`` (gw,), ``v`` (gh,)
+    and the summary numbers: ``rms``, ``max``, ``p99`` (covered region), ``image_rms``,
+    ``image_max``, ``image_p99`` (whole image)."""
+    np.savez_compressed(path, error_px=fit.error_map, covered=fit.covered_mask, u=fit.u, v=fit.v,
+                        rms=fit.rms, max=fit.max, p99=fit.p99,
+                        image_rms=fit.image.rms, image_max=fit.image.max, image_p99=fit.image.p99)

@@ -45,13 +45,12 @@ def opencv_yaml(cal: Calibration) -> str | None:
 
 
 def lean_yaml(fit: LeanFit, source: Calibration) -> str:
-    """The FileStorage YAML of a lean fit, with ``fitted_to`` and its fit errors (px)."""
-    lean = fit.calibration
-    lean.metrics = {k: v for k, v in lean.metrics.items() if k != "rmse"}
-    if fit.exact:
-        lean = source
+    """The FileStorage YAML of a lean fit, with ``fitted_to`` and its fit errors (px) over
+    the covered region (``fit_*``) and the whole image (``fit_image_*``)."""
+    lean = source if fit.exact else fit.calibration
     return _storage_string(lean, {"lean_model": fit.name, "fitted_to": source.method,
-                                  "fit_rms_error_px": fit.rms, "fit_max_error_px": fit.max})
+                                  "fit_rms_error_px": fit.rms, "fit_max_error_px": fit.max,
+                                  "fit_image_rms_error_px": fit.image.rms, "fit_image_max_error_px": fit.image.max})
 
 
 def read_opencv_yaml(text_or_path: str) -> dict[str, object]:

@@ -105,18 +105,6 @@ def test_ros_and_mrcal_exports_load_and_project_within_fit_error(tmp_path):
         cameramodel(fit_lean(cal, "kb4"))  # mrcal has no Kannala–Brandt model
 
 
-def test_mrcal_reads_our_cameramodel(tmp_path):
-    mrcal = pytest.importorskip("mrcal")
-    cal = cal_of("radial", "zhang")
-    fit = fit_lean(cal, "opencv5")
-    path = tmp_path / "cam.cameramodel"
-    path.write_text(cameramodel(fit))
-    m = mrcal.cameramodel(str(path))
-    u, v, rays, ok = sample_grid(cal)
-    got = mrcal.project(rays[ok], *m.intrinsics())
-    assert np.abs(got - cal.project(rays[ok])).max() <= fit.max + 1e-6
-
-
 def test_cli_export_and_undistort(tmp_path, capsys):
     cal = cal_of("radial", "zhang")
     cal.save(tmp_path / "cal.json")

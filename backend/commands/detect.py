@@ -57,7 +57,7 @@ def detect_with_report(images, board_spec: str | None, quiet: bool = False, work
     with CountProgress(quiet) as progress:
         det = detect_images(images, board, progress=progress, workers=workers, calibration=calibration)
     print_report(det)
-    size = board_size_advice(det, board, images, workers)
+    size = None if isinstance(board, Target) else board_size_advice(det, board, images, workers)
     if det.observations is None:
         raise DataError((det.warnings[0] if det.warnings else "no image was usable") + (f"; {size}" if size else ""))
     if size:

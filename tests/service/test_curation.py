@@ -129,9 +129,9 @@ def test_gopro_board_given_another_size_fails_saying_so_and_detects_again(servic
 
 
 def test_rendered_board_given_by_its_squares_is_corrected(service, rendered):
-    s = wait_set(service, upload(service, rendered[:4], "chessboard:10x7:50mm")["id"], 300)
+    s = wait_set(service, upload(service, rendered[:2], "chessboard:10x7:50mm")["id"], 300)
     assert s["state"] == "ready"
-    assert (s["board_suggestion"]["cols"], s["board_suggestion"]["rows"], s["board_suggestion"]["n_photos"]) == (9, 6, 4)
+    assert (s["board_suggestion"]["cols"], s["board_suggestion"]["rows"], s["board_suggestion"]["n_photos"]) == (9, 6, 2)
 
 
 def test_a_drop_keeps_the_usable_files_and_lists_the_others(service, rendered, tmp_path):

@@ -74,7 +74,8 @@ def _sample(gray: np.ndarray, grid: np.ndarray, s: float, t: float) -> np.ndarra
 
 def gap_strides(grid: np.ndarray, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Board squares spanned by each row gap (h-1,) and column gap (w-1,) of grid (h, w, 2):
-    1, 2, or 0 where the cells are unreadable (a grid grown into a grazing horizon).
+    1, 2, or 0 where the cells are unreadable (a grid grown into a grazing horizon) or
+    span three squares (a grid grown over two skipped board lines).
 
     A true cell is one square: its quarter points share a colour. A cell two squares
     long in a direction has its quarter points along it on opposite colours.
@@ -83,18 +84,27 @@ def gap_strides(grid: np.ndarray, gray: np.ndarray) -> tuple[np.ndarray, np.ndar
     ones = np.ones(max(h - 1, 0), int), np.ones(max(w - 1, 0), int)
     if h < 2 or w < 2:
         return ones
-    q = {(s, t): _sample(gray, grid, s, t) for s in (0.25, 0.5, 0.75) for t in (0.25, 0.5, 0.75)}
+    fractions = (0.2, 0.25, 0.5, 0.75, 0.8)
+    q = {(s, t): _sample(gray, grid, s, t) for s in fractions for t in fractions}
     allv = np.concatenate([v.ravel() for v in q.values()])
     contrast = np.percentile(allv, 90) - np.percentile(allv, 10)
     if contrast < 16:
         return ones
-    # Medians along each gap: the tags and markers of tagged boards fill a minority of cells.
-    down = np.median(np.abs(q[0.5, 0.25] - q[0.5, 0.75]), axis=1) / contrast   # (h-1,)
-    along = np.median(np.abs(q[0.25, 0.5] - q[0.75, 0.5]), axis=0) / contrast  # (w-1,)
-    def classes(x: np.ndarray) -> np.ndarray:
-        return np.where(x < 0.25, 1, np.where(x > 0.5, 2, 0))
 
-    return classes(down), classes(along)
+    # Medians along each gap: the tags and markers of tagged boards fill a minority of cells.
+    def change(a: tuple[float, float], b: tuple[float, float], axis: int) -> np.ndarray:
+        return np.median(np.abs(q[a] - q[b]), axis=axis) / contrast
+
+    def classes(two: np.ndarray, three: np.ndarray) -> np.ndarray:
+        # Quarter points read one colour over one square and over three (at 0.75 and 2.25
+        # squares): a cell of three squares changes colour between its fifth and its middle.
+        return np.where(two < 0.25, np.where(three > 0.5, 0, 1), np.where(two > 0.5, 2, 0))
+
+    down = classes(change((0.5, 0.25), (0.5, 0.75), 1),
+                   np.minimum(change((0.5, 0.2), (0.5, 0.5), 1), change((0.5, 0.8), (0.5, 0.5), 1)))
+    along = classes(change((0.25, 0.5), (0.75, 0.5), 0),
+                    np.minimum(change((0.2, 0.5), (0.5, 0.5), 0), change((0.8, 0.5), (0.5, 0.5), 0)))
+    return down, along
 
 
 def lattice_score(grid: np.ndarray, gray: np.ndarray) -> float:

@@ -21,6 +21,7 @@ from ..base.repository import sets
 from .lease import JobRun
 
 BATCHES = 8             # status updates per set; each batch still runs on every core
+DETECTED = 0.9          # the share of the progress figure the photos take (the board-size check: the rest)
 
 
 def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
@@ -38,13 +39,13 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     sets.reset_images(ctx.db, set_id)
     size = max(1, math.ceil(len(names) / BATCHES))
     views, warnings, image_size = [], [], None
-    run.progress("detect", 0.0)
+    run.progress("detect", 0.0, 0.0, DETECTED)
     for start in range(0, len(names), size):
         batch = names[start:start + size]
         done = start
 
         def progress(k: int, total: int, done=done) -> None:  # detect_images: after each image
-            run.progress("detect", (done + k) / len(names))
+            run.progress("detect", (done + k) / len(names), 0.0, DETECTED)
 
         det = detect_images([folder / n for n in batch], board, progress=progress)
         reports = [_report(r) for r in det.reports]
@@ -62,7 +63,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
                                  f"from the set's {list(image_size)}: one camera per set")
         warnings += [w for w in det.warnings if w not in warnings]
         sets.record_reports(ctx.db, set_id, reports)
-        run.progress("detect", (start + len(batch)) / len(names))
+        run.progress("detect", (start + len(batch)) / len(names), 0.0, DETECTED)
     coverage, warning = measure_coverage(views, image_size)
     # per batch, superseded by the set's own: coverage, the board found in none, images rejected
     per_batch = ("no corners in the ", " was found in none of the ", " images rejected (see the report")
@@ -72,7 +73,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     rejected = len(names) - len(views)
     if views and rejected:
         warnings.append(f"{rejected} of {len(names)} photos gave no corners (each says why)")
-    run.progress("board size", 0.0)
+    run.progress("board size", 0.0, DETECTED, 1.0)
     size_found = suggest_size(board, views, len(names), [folder / n for n in names])
     suggestion = record_suggestion(ctx, set_id, board, size_found, len(names))
     if suggestion and views:

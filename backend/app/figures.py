@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from calib_core import Calibration, Observations
+from calib_core.evaluation.diff import projection_diff as diff_of
 from calib_core.report import tables
 
 
@@ -27,3 +28,9 @@ def uncertainty(job_dir: Path, observations: Path) -> dict[str, Any] | None:
     if not observations.exists():
         return None
     return tables.uncertainty_map(_calibration(job_dir), Observations.load(observations))
+
+
+def projection_diff(job_dir: Path, other_dir: Path, grid: int, fit_region: str) -> dict[str, Any]:
+    """How far the other job's calibration puts each direction from where this job's does
+    (``freecal diff``'s map and summary)."""
+    return diff_of(_calibration(job_dir), _calibration(other_dir), grid, fit_region).to_json()

@@ -9,6 +9,7 @@ from typing import Any
 
 from calib_core import Observations, calibrate
 from calib_core.errors import DataError
+from calib_core.evaluation.compare import SETTINGS as COMPARE_SETTINGS
 
 from ..base.context import Context
 from ..base.repository.jobs import split_settings
@@ -16,7 +17,6 @@ from . import artefacts
 from .lease import JobRun
 
 COMPARE = "compare"
-COMPARE_KEYS = ("methods", "splits")
 
 
 def load_input(ctx: Context, job: dict[str, Any]) -> Observations:
@@ -46,7 +46,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     if job["method"] == COMPARE:
         from calib_core.evaluation.compare import compare
 
-        kwargs = {k: settings[k] for k in COMPARE_KEYS if k in settings}
+        kwargs = {k: settings[k] for k in COMPARE_SETTINGS if k in settings}
         result = compare(obs, progress=lambda s, f: run.progress(s, f, 0.0, 0.85), **kwargs)
         best = None
         if result.get("verdict"):

@@ -37,6 +37,7 @@ from .evaluate import validation_residuals
 from .parameters import fitted_parameter_count
 
 DEFAULT_METHODS = ("zhang", "rational", "fisheye", "mls", "tps", "bspline")
+SETTINGS = ("methods", "splits")  # what a caller may set of compare(): the service's compare jobs
 # The verdict's order of simplicity: parametric models by their number of
 # coefficients, then the fields.
 SIMPLEST_FIRST = ("zhang", "fisheye", "rational", "bspline", "mls", "tps")

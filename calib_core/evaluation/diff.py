@@ -73,10 +73,11 @@ class ProjectionDiff:
         mag = self.magnitude
         return {**self.summary(), "u": self.u.tolist(), "v": self.v.tolist(),
                 "dx": _nulls(self.diff[..., 0]), "dy": _nulls(self.diff[..., 1]), "magnitude": _nulls(mag),
-                "covered": None if self.covered is None else self.covered.tolist(),
-                "fitted": self.fitted.tolist(),
+                "covered_mask": None if self.covered is None else self.covered.tolist(),
+                "fitted_mask": self.fitted.tolist(),
                 "note": "B(R A^-1(q)) - q in pixels over a grid of pixels q, R the rotation between the two "
-                        "calibrations' camera frames fitted out; 'covered': inside both coverage hulls"}
+                        "calibrations' camera frames fitted out; 'covered': the summary inside both coverage "
+                        "hulls, 'covered_mask': the grid cells there"}
 
 
 def projection_diff(a: Calibration, b: Calibration, grid: int = DEFAULT_GRID,

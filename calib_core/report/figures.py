@@ -246,11 +246,11 @@ def projection_diff_map(diff: dict[str, Any]) -> bytes:
     im = ax.imshow(np.ma.masked_invalid(mag), extent=(u[0] - du, u[-1] + du, v[-1] + dv, v[0] - dv), cmap="magma",
                    vmin=0, vmax=max(vmax, 1e-9), interpolation="nearest")
     fig.colorbar(im, ax=ax, label="|difference| [px]", shrink=0.8)
-    if diff.get("covered") is not None:
-        ax.contour(u, v, np.asarray(diff["covered"], float), levels=[0.5], colors="white", linewidths=1.2)
+    if diff.get("covered_mask") is not None:
+        ax.contour(u, v, np.asarray(diff["covered_mask"], float), levels=[0.5], colors="white", linewidths=1.2)
     text = (f"median {s['median']:.3g} px, p95 {s['p95']:.3g} px, max {s['max']:.3g} px over the image"
             if s["n"] else "no pixel both calibrations can map")
-    if diff.get("covered") is not None:
+    if diff.get("covered_mask") is not None:
         text += "; white: covered by both"
     ax.text(0.01, 0.01, text, transform=ax.transAxes, fontsize=8, color="white",
             bbox={"facecolor": "black", "alpha": 0.5, "linewidth": 0})

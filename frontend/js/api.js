@@ -78,6 +78,7 @@ export const api = {
   knotCells: (id) => request("GET", `/api/jobs/${id}/figures/knot-cells`),
   uncertainty: (id) => request("GET", `/api/jobs/${id}/figures/uncertainty`),
   quality: (id) => request("GET", `/api/jobs/${id}/figures/quality`),
+  diff: (id, other) => request("GET", `/api/jobs/${id}/figures/diff/${other}`),
   rectifiedUrl: (id, name) => apiUrl(`/api/jobs/${id}/rectified/${encodeURIComponent(name)}`),
   mapsUrl: (id) => apiUrl(`/api/jobs/${id}/maps.npz`),
   viewer: () => request("GET", "/api/viewer"),

@@ -1,14 +1,11 @@
 // The calibrations of one set side by side: method, settings, views left out, rms and the error on
 // views left out of the fit, so that re-runs (another method, other settings, fewer views) compare
-// at a glance. A row opens that job. The "compare with…" slot is where a projection-difference map
-// between two calibrations is drawn, once a renderer is registered (registerComparison).
+// at a glance. A row opens that job. "Compare with…" draws the projection difference between the
+// calibration shown and another of the set (`freecal diff`, computed by the service).
 import { api } from "./api.js";
 import { el, px } from "./format.js";
-
-let comparison = null;   // ({a, b, box}) => void, drawing the difference of jobs a and b into box
-
-/** The seam for the projection difference (`freecal diff`): register the function that draws it. */
-export function registerComparison(render) { comparison = render; }
+import { diffFigure, diffSummary } from "./plots/diff.js";
+import { pageWords } from "./words.js";
 
 export async function renderSetJobs(job) {
   const box = document.getElementById("set-jobs");
@@ -60,12 +57,25 @@ function validation(j) {
 
 function compareSlot(job, all) {
   const others = all.filter((j) => j.id !== job.id && j.state === "done");
-  const slot = el("div", { id: "compare-slot", "data-seam": "projection-diff", hidden: !comparison || !others.length });
-  if (!comparison || !others.length) return slot;
-  const select = el("select", { id: "compare-with", "aria-label": "compare with another calibration" },
-    el("option", { value: "" }, "compare with…"), others.map((j) => el("option", { value: j.id }, `${what(j)} · ${time(j)}`)));
-  const out = el("div", { id: "compare-out" });
-  select.addEventListener("change", () => { out.replaceChildren(); if (select.value) comparison({ a: job, b: others.find((j) => j.id === select.value), box: out }); });
-  slot.append(select, out);
+  const slot = el("div", { id: "compare-slot", hidden: job.state !== "done" || !others.length });
+  if (slot.hidden) return slot;
+  const label = (j) => `${what(j)} · ${time(j)}`;
+  const select = el("select", { id: "compare-with", "aria-label": "compare with another calibration of this set" },
+    el("option", { value: "" }, "compare with…"), others.map((j) => el("option", { value: j.id }, label(j))));
+  const out = el("div", { id: "compare-out", "aria-live": "polite" });
+  select.addEventListener("change", async () => {
+    out.replaceChildren();
+    const other = others.find((j) => j.id === select.value);
+    if (!other) return;
+    out.append(el("p", { class: "muted" }, "computing the projection difference…"));
+    try {
+      const diff = await api.diff(job.id, other.id);
+      if (select.value !== other.id) return;   // another choice meanwhile
+      out.replaceChildren(diffSummary(diff), diffFigure({ diff, a: label(job), b: label(other) }));
+    } catch (e) {
+      out.replaceChildren(el("p", { class: "error", role: "alert" }, pageWords(e.message || String(e))));
+    }
+  });
+  slot.append(el("label", { for: "compare-with" }, "Projection difference with another calibration: "), select, out);
   return slot;
 }

@@ -12,32 +12,17 @@ Screenshots go to test-artifacts/curation/.
 """
 from __future__ import annotations
 
-import shutil
-
 import pytest
 
-from ..conftest import ROOT, shared_data
+from ..conftest import shared_data
 from ..rendered_boards import whole_board_photos
-from ..service.harness import FAST, Service
-from .test_page import browser, wait_until  # noqa: F401  (the module's Chromium, and its poll)
+from .conftest import page_service, screenshots, wait_until
 
 pytestmark = pytest.mark.slow
-SHOTS = ROOT / "test-artifacts" / "curation"
 
 
-@pytest.fixture(scope="module")
-def service(tmp_path_factory):
-    root = tmp_path_factory.mktemp("curation-page")
-    svc = Service(root / "data", root, {**FAST, "FREECAL_VIEWER": "0"}).start()
-    yield svc
-    svc.stop()
-
-
-@pytest.fixture(scope="module")
-def shots():
-    shutil.rmtree(SHOTS, ignore_errors=True)
-    SHOTS.mkdir(parents=True)
-    return SHOTS
+service = page_service("curation-page", FREECAL_VIEWER="0")
+shots = screenshots("curation")
 
 
 def text(page, selector: str) -> str:
@@ -126,6 +111,21 @@ def test_wrong_board_size_skipped_files_and_curation_on_gopro(browser, service, 
     assert page.locator("#set-jobs-table tbody tr").count() == 3   # the failed first job, auto, zhang
     page.locator("#set-jobs").scroll_into_view_if_needed()
     page.screenshot(path=shots / "04-rerun-side-by-side.png")
+
+    # the re-run against the auto calibration: the projection difference, as `freecal diff` computes it
+    options = page.locator("#compare-with option:not([value=''])")
+    assert options.count() == 1 and "auto" in options.first.text_content()   # the failed job is no calibration
+    other = options.first.get_attribute("value")
+    page.select_option("#compare-with", other)
+    page.wait_for_selector("#fig-diff canvas", timeout=60_000)
+    shown = page.evaluate("location.origin")
+    shown_job = page.locator("#set-jobs-table tr.best").get_attribute("data-job")
+    api = page.request.get(f"{shown}/api/jobs/{shown_job}/figures/diff/{other}").json()
+    median = text(page, "#diff-summary tr[data-region='covered by both'] td.median")
+    assert median == f"{api['covered']['median']:.3f} px", (median, api["covered"])
+    assert api["covered"]["median"] < 2.0   # one lens, two models: pixels apart at most where both had corners
+    assert "Rotation between the camera frames" in text(page, "#diff-summary")
+    page.locator("#compare-slot").screenshot(path=shots / "05-projection-difference.png")
     page.close()
     assert not errors, errors
 

@@ -13,34 +13,23 @@ from __future__ import annotations
 
 import io
 import json
-import os
-import shutil
 from pathlib import Path
 
 import pytest
 
 from calib_core import Calibration
 
-from ..conftest import ROOT, shared_data
+from ..conftest import shared_data
 from ..service.harness import FAST, Service, wait_for
+from .conftest import page_service, screenshots, wait_until
 
 pytestmark = pytest.mark.slow
 
-CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox", "--disable-background-networking",
-        "--disable-component-update", "--disable-sync", "--no-first-run"]
-SHOTS = ROOT / "test-artifacts" / "page"
 # a quick B-spline fit: the page test is about the page, not the method. A field over the
 # rational core, so that there is a field to review (on OpenCV's own lens the default
 # model choice keeps OpenCV's model alone: the token test below sees that choice).
 SETTINGS = {"knots": "uniform", "lambda_smooth": "0.1", "max_iterations": "30",  # intervals: auto
             "bandwidth_factor": "1.2", "time_budget": "60", "core": "rational"}
-
-
-def wait_until(page, expression: str, timeout: float) -> None:
-    """Poll a JS expression until true. Not page.wait_for_function: Playwright compiles its predicate
-    with eval inside the page, which the page's Content-Security-Policy (rightly) forbids."""
-    wait_for(lambda: page.evaluate(expression), timeout / 1000, expression, every=0.2)
 
 
 def fill_settings(page, settings: dict[str, str]) -> None:
@@ -53,30 +42,8 @@ def fill_settings(page, settings: dict[str, str]) -> None:
             page.fill(f"#setting-{key}", value)
 
 
-@pytest.fixture(scope="module")
-def browser():
-    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is in the test extra: make test")
-    if not os.access(CHROMIUM, os.X_OK):
-        pytest.skip(f"{CHROMIUM} is missing: `make test` installs Debian's chromium (apt-get, as root)")
-    with sync_api.sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
-        yield b
-        b.close()
-
-
-@pytest.fixture(scope="module")
-def service(tmp_path_factory):
-    root = tmp_path_factory.mktemp("page")
-    svc = Service(root / "data", root, {**FAST, "FREECAL_VIEWER_PORT": "0"}).start()
-    yield svc
-    svc.stop()
-
-
-@pytest.fixture(scope="module")
-def shots():
-    shutil.rmtree(SHOTS, ignore_errors=True)
-    SHOTS.mkdir(parents=True)
-    return SHOTS
+service = page_service("page", FREECAL_VIEWER_PORT="0")
+shots = screenshots("page")
 
 
 def test_upload_watch_review_download_and_3d(browser, service, shots, tmp_path):

@@ -12,23 +12,11 @@ import pytest
 from calib_core import calibrate
 
 from ..conftest import ROOT, synthetic
-from .test_page import ARGS, CHROMIUM
 
 pytestmark = pytest.mark.slow
 SHOTS = ROOT / "test-artifacts" / "report"
 FIGURE_IDS = ["fig-vectors", "fig-heatmap", "fig-view-errors", "fig-distortion-maps", "fig-distortion-field",
               "fig-knots", "fig-uncertainty", "fig-coverage"]
-
-
-@pytest.fixture(scope="module")
-def browser():
-    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is in the test extra: make test")
-    if not os.access(CHROMIUM, os.X_OK):
-        pytest.skip(f"{CHROMIUM} is missing: `make test` installs Debian's chromium (apt-get, as root)")
-    with sync_api.sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
-        yield b
-        b.close()
 
 
 def test_the_report_opens_offline_with_every_table_and_figure(browser, tmp_path):

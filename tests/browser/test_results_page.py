@@ -9,48 +9,24 @@ from __future__ import annotations
 
 import json
 import re
-import shutil
 import subprocess
 import sys
 
 import pytest
 
 from ..conftest import ROOT, shared_data
-from ..service.harness import FAST, Service
-from .test_page import ARGS, CHROMIUM, fill_settings, wait_until
+from .conftest import page_service, screenshots, wait_until
+from .test_page import fill_settings
 
 pytestmark = pytest.mark.slow
 
-SHOTS = ROOT / "test-artifacts" / "results-page"
 PHONE = {"width": 375, "height": 740}
 DESKTOP = {"width": 1366, "height": 768}
 HEX_ID = re.compile(r"\b[0-9a-f]{12,}\b")
 
 
-@pytest.fixture(scope="module")
-def browser():
-    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is in the test extra: make test")
-    if not shutil.which(CHROMIUM):
-        pytest.skip(f"{CHROMIUM} is missing: `make test` installs Debian's chromium (apt-get, as root)")
-    with sync_api.sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
-        yield b
-        b.close()
-
-
-@pytest.fixture(scope="module")
-def service(tmp_path_factory):
-    root = tmp_path_factory.mktemp("results-page")
-    svc = Service(root / "data", root, {**FAST, "FREECAL_VIEWER": "0"}).start()
-    yield svc
-    svc.stop()
-
-
-@pytest.fixture(scope="module")
-def shots():
-    shutil.rmtree(SHOTS, ignore_errors=True)
-    SHOTS.mkdir(parents=True)
-    return SHOTS
+service = page_service("results-page", FREECAL_VIEWER="0")
+shots = screenshots("results-page")
 
 
 def open_page(browser, service, viewport):

@@ -3,14 +3,16 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Query
 from starlette.concurrency import run_in_threadpool
+
+from calib_core.evaluation.diff import DEFAULT_GRID
 
 from ..deps import ContextDep
 from ..errors import ApiError
-from ..figures import knot_cells, uncertainty
+from ..figures import knot_cells, projection_diff, uncertainty
 from ..schemas import Message
 from ..services import jobs as service
 
@@ -52,3 +54,29 @@ async def read_uncertainty(ctx: ContextDep, job_id: str) -> dict[str, Any]:
 @functools.lru_cache(maxsize=8)
 def _uncertainty(job_dir: str, observations: str, finished_at: float) -> dict[str, Any] | None:
     return uncertainty(Path(job_dir), Path(observations))
+
+
+MAX_DIFF_GRID = 200   # samples across the image: 200 x 150 cells is a 1 MB answer
+
+
+@router.get("/{job_id}/figures/diff/{other_id}", responses={404: {"model": Message}, 409: {"model": Message},
+                                                           422: {"model": Message}})
+async def read_projection_diff(ctx: ContextDep, job_id: str, other_id: str,
+                               grid: Annotated[int, Query(ge=2, le=MAX_DIFF_GRID)] = DEFAULT_GRID,
+                               fit_region: Literal["covered", "centre", "none"] = "covered") -> dict[str, Any]:
+    """The projection difference from this job's calibration to another's of the same camera: each pixel's
+    direction under this one, turned by the rotation between the two camera frames, projected by the other
+    (``freecal diff``; mrcal-show-projection-diff's question), as a map and its summary."""
+    dirs = []
+    for ident in (job_id, other_id):
+        job = service.get(ctx, ident)
+        if job["state"] != "done" or "calibration.json" not in job["artefacts"]:
+            raise ApiError(409, f"job {ident} is {job['state']}: it can be compared once its calibration is done")
+        dirs.append((str(ctx.storage.job_dir(ident)), job["finished_at"]))
+    return await run_in_threadpool(_diff, *dirs[0], *dirs[1], grid, fit_region)
+
+
+@functools.lru_cache(maxsize=16)
+def _diff(job_dir: str, finished: float, other_dir: str, other_finished: float, grid: int,
+          fit_region: str) -> dict[str, Any]:
+    return projection_diff(Path(job_dir), Path(other_dir), grid, fit_region)

@@ -6,6 +6,7 @@ from typing import Any
 
 from calib_core import ranges
 from calib_core.errors import SettingsError
+from calib_core.evaluation.compare import SETTINGS as COMPARE_SETTINGS
 from calib_core.methods import METHODS
 from calib_core.methods.common import settings_from
 from calib_core.pipeline import check_outlier_sigma
@@ -24,7 +25,6 @@ from .ids import new_id
 
 COMPARE = "compare"
 PIPELINE_KEYS = ("outlier_sigma",)     # settings of calibrate() itself, not of a method
-COMPARE_KEYS = ("methods", "splits")
 MAX_SPLITS = 20                        # folds over the views: each is a calibration of every method
 
 
@@ -45,9 +45,9 @@ def validate(method: str, settings: dict[str, Any]) -> None:
         if not compare_available():
             raise ApiError(422, "method 'compare' is not available in this version; choose one of "
                                 f"{sorted(METHODS)}")
-        unknown = sorted(set(settings) - set(COMPARE_KEYS))
+        unknown = sorted(set(settings) - set(COMPARE_SETTINGS))
         if unknown:
-            raise ApiError(422, f"unknown compare setting(s) {unknown}; known: {list(COMPARE_KEYS)}")
+            raise ApiError(422, f"unknown compare setting(s) {unknown}; known: {list(COMPARE_SETTINGS)}")
         splits = settings.get("splits", 5)
         if splits != 0:
             ranges.whole("splits", splits, 2, MAX_SPLITS, alternative="0 (no cross-validation)")

@@ -77,6 +77,24 @@ export class ImagePlot {
     c.fillText(label, 0, 0); c.restore();
   }
 
+  /** A map sampled on the pixel grid u × v (cell centres): ``style(i, j)`` → [fill colour, opacity]. */
+  cells(u, v, style) {
+    const du = u.length > 1 ? u[1] - u[0] : this.domain[1], dv = v.length > 1 ? v[1] - v[0] : this.domain[3];
+    this.clip((c) => {
+      for (let j = 0; j < v.length; j++) for (let i = 0; i < u.length; i++) {
+        [c.fillStyle, c.globalAlpha] = style(i, j);
+        c.fillRect(this.x(u[i] - du / 2), this.y(v[j] - dv / 2), this.k * du + 0.6, this.k * dv + 0.6);
+      }
+    });
+  }
+
+  /** ``fn(i, j)`` → tooltip text for the cell of the grid u × v under the mouse. */
+  onHoverCell(u, v, fn) {
+    const du = u.length > 1 ? u[1] - u[0] : 1, dv = v.length > 1 ? v[1] - v[0] : 1;
+    const at = (x, n, d, x0) => Math.max(0, Math.min(n - 1, Math.round((x - x0) / d)));
+    this.onHover((x, y) => fn(at(x, u.length, du, u[0]), at(y, v.length, dv, v[0])));
+  }
+
   /** ``fn(u, v)`` → tooltip text (or null) for the image point under the mouse. */
   onHover(fn) { this.hover = fn; }
 

@@ -16,9 +16,10 @@ itself can tell:
   over every other line of the board (seen on 2 of the 25 BabelCalib fisheye
   views, all rows; on rendered fisheye views, some rows). Its corners are real
   but those cells hold two squares, so their quarter-cell samples fall on
-  opposite colours. Such a grid is expanded to the board's own lattice (the
+  opposite colours; a cell of three squares (one BabelCalib view, OpenCV 5.1)
+  changes colour between its fifth and its middle. Such a grid is expanded to the board's own lattice (the
   skipped corners are interpolated only to place it, and are not returned);
-  gaps that read as neither one nor two squares (a grid grown into a grazing
+  gaps that read as none of these (a grid grown into a grazing
   horizon) cut the grid, and its largest clean block is kept.
 
 What stays unknown for a partial plain chessboard is *where* on the board the
@@ -74,8 +75,7 @@ def _sample(gray: np.ndarray, grid: np.ndarray, s: float, t: float) -> np.ndarra
 
 def gap_strides(grid: np.ndarray, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Board squares spanned by each row gap (h-1,) and column gap (w-1,) of grid (h, w, 2):
-    1, 2, or 0 where the cells are unreadable (a grid grown into a grazing horizon) or
-    span three squares (a grid grown over two skipped board lines).
+    1, 2, 3, or 0 where the cells are unreadable (a grid grown into a grazing horizon).
 
     A true cell is one square: its quarter points share a colour. A cell two squares
     long in a direction has its quarter points along it on opposite colours.
@@ -98,7 +98,7 @@ def gap_strides(grid: np.ndarray, gray: np.ndarray) -> tuple[np.ndarray, np.ndar
     def classes(two: np.ndarray, three: np.ndarray) -> np.ndarray:
         # Quarter points read one colour over one square and over three (at 0.75 and 2.25
         # squares): a cell of three squares changes colour between its fifth and its middle.
-        return np.where(two < 0.25, np.where(three > 0.5, 0, 1), np.where(two > 0.5, 2, 0))
+        return np.where(two < 0.25, np.where(three > 0.5, 3, 1), np.where(two > 0.5, 2, 0))
 
     down = classes(change((0.5, 0.25), (0.5, 0.75), 1),
                    np.minimum(change((0.5, 0.2), (0.5, 0.5), 1), change((0.5, 0.8), (0.5, 0.5), 1)))

@@ -152,12 +152,13 @@ def test_grids_that_skip_or_shear_board_lines_are_read_as_such():
     ids, _ = place_grid(skip, 6, 5, img)
     assert sorted((ids // 6).tolist()) == [0] * 6 + [2] * 6 + [4] * 6  # board rows 0, 2, 4: the gaps kept
     # Two skipped lines: a gap of three squares reads one colour at its quarter points like a
-    # single square; it is cut, never placed as one (a whole row under a wrong id otherwise).
+    # single square; read as one, a whole row would take a wrong id.
     three = full[[0, 1, 4]]
     sr, sc = gap_strides(three, img)
-    assert sr.tolist() == [1, 0] and sc.tolist() == [1] * 5
+    assert sr.tolist() == [1, 3] and sc.tolist() == [1] * 5
     ids, _ = place_grid(three, 6, 5, img)
-    assert len(ids) == 12 and len(set((ids // 6).tolist())) == 2
+    assert sorted((ids // 6).tolist()) == [0] * 6 + [1] * 6 + [4] * 6
+    assert place_grid(full[[0, 1, 4]][:, [0, 3]], 4, 4, img) is None   # 5 rows once expanded: not this board
     sheared = full[:3, :3].copy()
     sheared[1:] = full[1:3, 1:4]                       # rows shifted by one column: a diagonal axis
     assert lattice_score(sheared, img) < 0.8

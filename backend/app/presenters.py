@@ -23,7 +23,7 @@ def set_public(ctx: Context, row: dict[str, Any], with_images: bool) -> SetPubli
         progress=progress, error=error, image_size=row["image_size"],
         n_images=len(images) if images is not None else row.get("n_images", 0),
         n_views=row["n_views"], coverage=row["coverage"], warnings=row["warnings"],
-        created_at=_dt(row["created_at"]), detection_job=job_id,
+        created_at=datetime.fromtimestamp(row["created_at"], tz=UTC), detection_job=job_id,
         images=[ImagePublic(**im) for im in images] if with_images and images is not None else None,
         **(set_service.curation(ctx, row) if with_images else {}),
     )
@@ -48,6 +48,6 @@ def job_public(row: dict[str, Any]) -> JobPublic:
         id=row["id"], kind=row["kind"], set_id=row["set_id"], method=row["method"], settings=settings, exclude=exclude,
         state=row["state"], stage=row["stage"], progress=row["progress"], error=row["error"],
         attempts=row["attempts"], cancel_requested=row["cancel_requested"], worker=row["worker"],
-        created_at=_dt(row["created_at"]), started_at=_dt(start), finished_at=_dt(end), timings=timings,
+        created_at=datetime.fromtimestamp(row["created_at"], tz=UTC), started_at=_dt(start), finished_at=_dt(end), timings=timings,
         summary=row["summary"], downloads=downloads,
     )

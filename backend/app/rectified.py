@@ -32,7 +32,7 @@ def _camera(cal: Calibration):
         except CalibError:
             continue
     fx, fy = cal.model.intrinsics[:2]
-    return fixed_camera(0.5 * (fx + fy), tuple(cal.image_size))
+    return fixed_camera(0.5 * (fx + fy), cal.image_size)
 
 
 def preview(job_dir: Path, image: Path, max_pixels: int) -> bytes | None:

@@ -138,8 +138,9 @@ def install_docs(app: FastAPI) -> str:
 
     @app.get("/docs", include_in_schema=False)
     def plain_docs() -> HTMLResponse:
-        rows = "".join(f"<li><code>{', '.join(sorted(getattr(r, 'methods', None) or []))} {r.path}</code></li>"
-                       for r in app.routes if getattr(r, "path", "").startswith("/api"))
+        paths = [(getattr(r, "methods", None) or [], getattr(r, "path", "")) for r in app.routes]
+        rows = "".join(f"<li><code>{', '.join(sorted(methods))} {path}</code></li>"
+                       for methods, path in paths if path.startswith("/api"))
         return HTMLResponse(f"<!doctype html><title>freecal API</title><h1>freecal API</h1>"
                             f"<p>The schema: <a href='/openapi.json'>/openapi.json</a></p><ul>{rows}</ul>")
     return "plain"

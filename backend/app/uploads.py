@@ -275,5 +275,5 @@ def observations_within(doc: Any, what: str, settings: Settings) -> Observations
     within the pixel limit: undistortion maps and previews are made at that size. For an uploaded
     observations file and for a job's inline observations alike."""
     obs = Observations.from_json(doc)
-    check_pixels(tuple(obs.image_size), f"the image_size of {what}", settings.max_image_pixels)
+    check_pixels(obs.image_size, f"the image_size of {what}", settings.max_image_pixels)
     return obs

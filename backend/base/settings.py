@@ -7,9 +7,10 @@ environment, so one exported variable configures every part.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 MB = 1024 * 1024
 
@@ -18,7 +19,7 @@ MB = 1024 * 1024
 class Settings:
     data_dir: Path = Path("freecal-data")
     # "sqlite" (embedded, a file in data_dir) or "redis" (several machines/containers)
-    queue: str = "sqlite"
+    queue: Literal["sqlite", "redis"] = "sqlite"
     redis_url: str = "redis://127.0.0.1:6379/0"
     # Upload limits: a client can cause these, so they answer 413/422, never 500.
     max_upload_bytes: int = 1024 * MB
@@ -81,13 +82,13 @@ class Settings:
     @classmethod
     def from_env(cls, env: dict[str, str] | None = None, **overrides: Any) -> Settings:
         """Read ``FREECAL_<FIELD>`` (e.g. ``FREECAL_DATA_DIR``); ``overrides`` win."""
-        env = os.environ if env is None else env
+        source: Mapping[str, str] = os.environ if env is None else env
         values: dict[str, Any] = {}
         for f in fields(cls):
-            raw = env.get("FREECAL_" + f.name.upper())
+            raw = source.get("FREECAL_" + f.name.upper())
             if raw is None or raw == "":
                 continue
-            kind = Path if f.name == "data_dir" else type(getattr(cls, f.name))
+            kind: Callable[[str], Any] = Path if f.name == "data_dir" else type(getattr(cls, f.name))
             if kind is bool:  # bool("0") is True: read the words people write
                 kind = _flag
             try:

@@ -22,7 +22,7 @@ import shutil
 import sqlite3
 import tempfile
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import IO, Any, BinaryIO
 
 CHUNK = 1024 * 1024
 # errno values meaning "this data directory takes no writes now" (full, or read-only / not permitted)
@@ -102,7 +102,7 @@ def write_cache(path: Path, data: bytes) -> bytes:
     return data
 
 
-def copy_stream(src: BinaryIO, path: Path, limit: int) -> int:
+def copy_stream(src: IO[bytes], path: Path, limit: int) -> int:
     """Copy a stream to ``path`` atomically; raises TooLarge past ``limit`` bytes."""
     n = 0
     with _atomic(path) as f:

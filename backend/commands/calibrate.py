@@ -123,6 +123,7 @@ def observations_of(args) -> Observations:
     if args.board or args.target:
         det = detect_with_report(args.observations, args.board, args.quiet, args.workers, target_path=args.target)
         print()
+        assert det.observations is not None  # detect_with_report raises when no image gave corners
         return det.observations
     if args.observations == [STDIN]:
         return load_observations(STDIN)

@@ -108,6 +108,7 @@ def run(args) -> int:
         claim_stdout("--json")
     cal = load_calibration(args.refine_with) if args.refine_with else None
     det = detect_with_report(args.images, args.board, args.quiet, args.workers, cal, args.target)
+    assert det.observations is not None  # detect_with_report raises when no image gave corners
     det.observations.extra["coverage"] = det.coverage
     text = json_text(det.observations.to_json())
     with outputs.writing():

@@ -80,6 +80,7 @@ def run(args) -> int:
         from calib_core.exports.sidecar import uncertainty_sidecar
         from calib_core.report.tables import uncertainty_map
 
+        assert obs is not None  # --uncertainty needs --observations (checked above)
         uncertainty = uncertainty_sidecar(done, source, uncertainty_map(source, obs), str(written))
     with outputs.writing():
         assert written is not None  # -o is required

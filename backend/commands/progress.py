@@ -61,7 +61,8 @@ class StageProgress(_Bar):
     def __init__(self, quiet: bool = False, what: str = "calibrating"):
         super().__init__(quiet, TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(),
                          TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn())
-        self.quiet, self.what, self.stage = quiet, what, None
+        self.quiet, self.what = quiet, what
+        self.stage: str | None = None
         self.task = self.bar.add_task(what, total=1.0) if self.bar is not None else None
 
     def __call__(self, stage: str, fraction: float) -> None:

@@ -48,7 +48,8 @@ def run(args) -> int:
 
     env = {**os.environ, **settings.to_env()}
     argv = [sys.executable, "-m", "backend.cli", "worker", "--parent-pid", str(os.getpid())]
-    supervisor = Supervisor(argv, env, settings.workers).start()
+    supervisor = Supervisor(argv, env, settings.workers)
+    supervisor.start()
     print(f"freecal: API on http://{args.host}:{args.port} (docs at /docs), {settings.workers} worker(s), "
           f"data in {settings.data_dir}", file=sys.stderr, flush=True)
     try:

@@ -38,7 +38,8 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     names = [im["name"] for im in row["images"]]
     sets.reset_images(ctx.db, set_id)
     size = max(1, math.ceil(len(names) / BATCHES))
-    views, warnings, image_size = [], [], None
+    views, warnings = [], []
+    image_size: tuple[int, int] | None = None
     run.progress("detect", 0.0, 0.0, DETECTED)
     for start in range(0, len(names), size):
         batch = names[start:start + size]
@@ -51,7 +52,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
         reports = [_report(r) for r in det.reports]
         if det.observations is not None:
             if image_size is None:
-                image_size = tuple(det.observations.image_size)
+                image_size = det.observations.image_size
             # detect_images keeps one size per call; across batches that is ours to check
             if tuple(det.observations.image_size) == image_size:
                 views += det.observations.views
@@ -80,7 +81,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
         warnings.append(suggestion["message"])
     sets.record_detection(ctx.db, set_id, None if image_size is None else list(image_size), coverage,
                           warnings, len(views))
-    if not views:
+    if not views or image_size is None:
         raise DataError(none_found(board, len(names)) + (f"; {suggestion['message']}" if suggestion else ""))
     obs = Observations(image_size, views, board.to_json())
     storage.write_json(ctx.storage.observations_path(set_id), obs.to_json())

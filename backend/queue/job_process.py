@@ -52,7 +52,8 @@ def supervise(ctx: Context, job_id: str, attempt: int) -> None:
         proc.start()
         _live.add(proc)
     limit = s.job_timeout if s.job_timeout > 0 else math.inf
-    started, cancel_seen = time.monotonic(), None
+    started = time.monotonic()
+    cancel_seen: float | None = None
     try:
         while True:
             proc.join(timeout=max(0.0, min(s.heartbeat_seconds, started + limit - time.monotonic())))
@@ -71,7 +72,7 @@ def supervise(ctx: Context, job_id: str, attempt: int) -> None:
                 return
             if cancel and cancel_seen is None:
                 cancel_seen = now   # the job's own progress callback normally stops it well before the next beat
-            elif cancel and now - cancel_seen >= s.heartbeat_seconds:
+            elif cancel and cancel_seen is not None and now - cancel_seen >= s.heartbeat_seconds:
                 _end(proc)
                 jobs.finish(ctx.db, job_id, attempt, "cancelled")
                 log.info("job %s did not stop on cancel by itself: killed", job_id)
@@ -91,7 +92,8 @@ def supervise(ctx: Context, job_id: str, attempt: int) -> None:
 
 def _end(proc: mp.process.BaseProcess) -> None:
     """Kill the job process (and what it started) and reap it: after this it can write nothing more."""
-    kill_tree(proc.pid)
+    if proc.pid is not None:   # None: never started
+        kill_tree(proc.pid)
     proc.join()
 
 
@@ -115,7 +117,7 @@ def stop_all() -> None:
     _stopping.set()
     with _lock:
         for proc in list(_live):
-            if proc.exitcode is None:
+            if proc.exitcode is None and proc.pid is not None:
                 kill_tree(proc.pid)
 
 

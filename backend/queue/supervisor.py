@@ -46,10 +46,9 @@ class Supervisor(threading.Thread):
         self._stopping = threading.Event()
         self._ready = threading.Event()
 
-    def start(self) -> Supervisor:
+    def start(self) -> None:
         super().start()
         self._ready.wait()  # the first workers exist before the API answers
-        return self
 
     def run(self) -> None:
         try:

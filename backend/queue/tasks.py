@@ -1,6 +1,7 @@
 """The one huey task: run job ``job_id`` (its kind, inputs and settings are in the database)."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from huey import Huey
@@ -16,7 +17,7 @@ class QueueUnavailable(Exception):
 @dataclass
 class Queue:
     huey: Huey
-    _run: object  # huey TaskWrapper
+    _run: Callable[[str], object]  # huey's TaskWrapper: calling it enqueues
 
     def enqueue(self, job_id: str) -> None:
         try:

@@ -1,7 +1,7 @@
 """/api/jobs: create a calibration job, read its progress, cancel, delete, download results."""
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 from fastapi import APIRouter, Request, Response, status
 from fastapi.responses import FileResponse
@@ -17,7 +17,7 @@ from ..services import jobs as service
 
 # BoundedJSONRoute: the JSON body (inline observations: up to 64 MiB) is parsed off the event loop, depth bounded
 router = APIRouter(prefix="/api/jobs", tags=["jobs"], route_class=BoundedJSONRoute)
-ERRORS = {404: {"model": Message}, 409: {"model": Message}, 503: {"model": Message}, 422: {"model": Message},
+ERRORS: dict[int | str, dict[str, Any]] = {404: {"model": Message}, 409: {"model": Message}, 503: {"model": Message}, 422: {"model": Message},
           429: {"model": Message}}
 
 # result file → content type; the download is named freecal-job-ID-NAME

@@ -20,7 +20,7 @@ from ..services import jobs as service
 from ..services import sets as sets_service
 
 router = APIRouter(prefix="/api/jobs", tags=["jobs"])
-ERRORS = {404: {"model": Message}, 409: {"model": Message}, 413: {"model": Message}}
+ERRORS: dict[int | str, dict[str, Any]] = {404: {"model": Message}, 409: {"model": Message}, 413: {"model": Message}}
 
 
 def _done(ctx, job_id: str) -> dict:

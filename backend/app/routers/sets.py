@@ -1,7 +1,7 @@
 """/api/sets: upload images (or a zip, or corners JSON) with a board; read; delete."""
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import APIRouter, File, Form, Request, Response, UploadFile, status
 from fastapi.responses import FileResponse
@@ -18,7 +18,7 @@ from ..services import sets as service
 from ..uploads import Upload
 
 router = APIRouter(prefix="/api/sets", tags=["sets"])
-ERRORS = {404: {"model": Message}, 409: {"model": Message}, 503: {"model": Message}, 413: {"model": Message},
+ERRORS: dict[int | str, dict[str, Any]] = {404: {"model": Message}, 409: {"model": Message}, 503: {"model": Message}, 413: {"model": Message},
           415: {"model": Message}, 422: {"model": Message}, 429: {"model": Message}}
 
 
@@ -35,7 +35,7 @@ async def create_set(
     await run_in_threadpool(quota.check, ctx, client_of(request))  # a set's detection is a job too
     set_id = await run_in_threadpool(service.create, ctx, queue, uploads, board, name)
     detection = job_rows.latest_detection(ctx.db, set_id)
-    quota.add(client_of(request), detection and detection["id"])
+    quota.add(client_of(request), detection["id"] if detection else None)
     return set_public(ctx, service.get(ctx, set_id), with_images=True)
 
 

@@ -89,6 +89,7 @@ def create(ctx: Context, queue: Queue, body: JobCreate) -> str:
         exclude = exclusion.check(ctx, body.exclude, None, obs)
         storage.write_json(ctx.storage.job_dir(job_id) / "input.json", obs.to_json())
     else:
+        assert body.set_id is not None  # JobCreate: exactly one of the two inputs
         row = sets.get(ctx.db, body.set_id)
         if row is None:
             raise not_found("set", body.set_id)

@@ -10,10 +10,11 @@ from ...base.repository import jobs, sets
 from ...queue.tasks import Queue
 from .. import bounded_json, uploads
 from ..errors import ApiError, not_found
+from ..schemas import SetState
 from .enqueue import enqueue_or_undo
 from .ids import new_id
 
-SET_STATE = {"queued": "queued", "running": "detecting", "done": "ready", "failed": "failed",
+SET_STATE: dict[str, SetState] = {"queued": "queued", "running": "detecting", "done": "ready", "failed": "failed",
              "cancelled": "cancelled"}
 
 
@@ -33,6 +34,7 @@ def create(ctx: Context, queue: Queue, files: list[uploads.Upload], board_spec: 
         title = name or (files[0].name if len(files) == 1 else f"{len(files)} files")
         if got.kind == "observations":
             obs = got.observations if got.corners_file is None else _corners_vnl(got, board, ctx)
+            assert obs is not None  # uploads.receive: a corners upload carries its observations
             _keep_skipped(ctx, set_id, got.skipped)
             if board is not None:
                 obs.board = board.to_json()
@@ -88,6 +90,7 @@ def _corners_vnl(got: uploads.Received, board: Any, ctx: Context):
     from calib_core.imports.mrcal_corners import read_corners_vnl
 
     up = got.corners_file
+    assert up is not None and got.image_size is not None  # uploads.receive: a corners.vnl comes with its size
     raw = up.stream.read(ctx.settings.max_observations_bytes + 1)
     if len(raw) > ctx.settings.max_observations_bytes:
         raise ApiError(413, f"{up.name!r} is over the limit of {ctx.settings.max_observations_bytes} bytes")
@@ -139,7 +142,7 @@ def _board(spec: str | None) -> Any:
     return BoardSpec.parse(text)  # SettingsError → 422 with its message
 
 
-def state(ctx: Context, row: dict[str, Any]) -> tuple[str, float, str | None, str | None]:
+def state(ctx: Context, row: dict[str, Any]) -> tuple[SetState, float, str | None, str | None]:
     """(state, progress, error, detection job id) of a set, from its latest detection job."""
     if row["source"] == "observations":
         return "ready", 100.0, None, None

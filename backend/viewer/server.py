@@ -42,7 +42,6 @@ class Session:
     labels: dict[str, str] = field(default_factory=dict)   # job dropdown label → job id
     gui: dict[str, Any] = field(default_factory=dict)
     lock: threading.Lock = field(default_factory=threading.Lock)
-    aimed: bool = False   # the tab's camera was put at the scene's overview once
 
     def describe(self) -> dict[str, Any]:
         visible = {name: bool(self.built.handles[path].visible) for name, path in LAYERS.items()
@@ -72,7 +71,7 @@ class Viewer:
         self.server = viser.ViserServer(host=host, port=port, label="freecal 3D view", verbose=False)
         self.gate = ProxyOnly(self.server)   # first: before any callback that sends freecal's data
         self.server.gui.configure_theme(control_layout="floating", control_width="large", show_logo=False)
-        # until a tab's camera is aimed at its own scene (``_aim``): behind and above the camera
+        # a tab's first frame, before its camera is aimed at its own scene (``_aim``): behind and above the camera
         default = Built().view
         self.server.initial_camera.up = default.up
         self.server.initial_camera.position = default.position
@@ -131,8 +130,6 @@ class Viewer:
         session.gui["gui_component"].on_update(lambda _: self._set_component(session))
         session.gui["gui_overview"].on_click(lambda _: self._aim(session, session.built.view))
         session.gui["gui_refresh"].on_click(lambda _: self._refresh(session))
-        # viser knows a tab's camera only once the tab reports it: aim it at the scene then, once
-        client.camera.on_update(lambda _: self._aim_once(session))
         if asked.pair:
             session.selected_view = self.selections.get(asked.pair).view
         self._show(session, session.labels.get(first))
@@ -168,8 +165,8 @@ class Viewer:
             session.gui["gui_layer_Knot grid"].disabled = "Knot grid" not in has
             self._methods(session, result)
             session.gui["gui_legend"].content = legend(result, session.built)
-        if session.aimed:
-            self._aim(session, session.built.view)
+        # viser calls a tab connected once it has reported its camera: it can be aimed from the start
+        self._aim(session, session.built.view)
 
     def _on_board_click(self, session: Session) -> None:
         """A board clicked in 3D selects its view here and on the paired page."""
@@ -191,19 +188,12 @@ class Viewer:
         session.selected_view = view
         highlight(session.built.handles, session.built.views, view)
 
-    def _aim_once(self, session: Session) -> None:
-        if not session.aimed and session.built.handles:
-            session.aimed = True
-            self._aim(session, session.built.view)
-
     def _aim(self, session: Session, pose: Pose) -> None:
+        """Put the tab's camera at ``pose`` (position first: viser moves look_at along with it)."""
         camera = session.client.camera
-        try:
-            camera.up_direction = pose.up
-            camera.position = pose.position
-            camera.look_at = pose.look_at
-        except (AssertionError, ValueError):   # the tab has not reported its camera yet: _aim_once will
-            session.aimed = False
+        camera.up_direction = pose.up
+        camera.position = pose.position
+        camera.look_at = pose.look_at
 
     def _methods(self, session: Session, result: data.JobResult) -> None:
         """The method dropdown lists the methods with a done job on the same set."""

@@ -60,7 +60,7 @@ def tab(service, **params: str):
                 pass
 
         threading.Thread(target=drain, daemon=True).start()
-        yield
+        yield ws
 
 
 def camera_message() -> bytes:
@@ -70,6 +70,17 @@ def camera_message() -> bytes:
 
     message = ViewerCameraMessage(wxyz=(1.0, 0.0, 0.0, 0.0), position=(0.0, 0.0, -1.0), fov=1.0, near=0.01, far=100.0,
                                   image_height=600, image_width=800, look_at=(0.0, 0.0, 0.0), up_direction=(0.0, -1.0, 0.0))
+    return msgspec.msgpack.encode(message.as_serializable_dict())
+
+
+def click_message(client_id: int, node: str) -> bytes:
+    """A click on scene node ``node`` of this tab's own scene, as viser's page sends it."""
+    import msgspec.msgpack
+    from viser._messages import SceneNodeClickMessage
+
+    message = SceneNodeClickMessage(name=node, instance_index=None, ray_origin=(0.0, 0.0, -1.0),
+                                    ray_direction=(0.0, 0.0, 1.0), screen_pos=(0.5, 0.5), modifier=None)
+    message.owner = str(client_id)   # the tab's own scene, not the shared one
     return msgspec.msgpack.encode(message.as_serializable_dict())
 
 
@@ -95,8 +106,8 @@ def test_a_tab_opens_on_the_job_its_url_names_not_the_last_asked(service, jobs):
         assert "/image_plane/knots" in shown(service, jobs["field"])["nodes"]
 
 
-def test_the_view_selected_on_the_page_is_highlighted_in_its_tab(service, jobs):
-    with tab(service, job=jobs["field"], pair=PAIR):
+def test_the_view_selected_is_highlighted_in_3d_and_back(service, jobs):
+    with tab(service, job=jobs["field"], pair=PAIR) as ws:
         assert shown(service, jobs["field"])["highlighted"] == []
         # a row of the page's per-view table (view_residuals.json) names the view
         name = service.client.get(f"/api/jobs/{jobs['field']}/view_residuals.json").json()[0]["view"]
@@ -110,4 +121,16 @@ def test_the_view_selected_on_the_page_is_highlighted_in_its_tab(service, jobs):
         assert wait_for(highlighted, 10, "the page's view highlighted in 3D", service.logs())["selected_view"] == name
         got = service.client.get("/api/viewer/selection", params={"pair": PAIR}).json()
         assert got["view"] == name and got["seq"] >= 1
+
+        # a board clicked in 3D: its view is the selection the page polls, and gold in the tab
+        ws.send(click_message(shown(service, jobs["field"])["client_id"], "/boards/3/plane"))
+
+        def clicked():
+            now = service.client.get("/api/viewer/selection", params={"pair": PAIR}).json()
+            return now if now["source"] == "3d" else None
+
+        picked = wait_for(clicked, 10, "the board clicked in 3D to reach the selection", service.logs())
+        views = {row["view"] for row in service.client.get(f"/api/jobs/{jobs['field']}/view_residuals.json").json()}
+        assert picked["view"] in views and picked["view"] != name and picked["seq"] > got["seq"]
+        assert shown(service, jobs["field"])["highlighted"] == [picked["view"]]
     assert service.client.get("/api/viewer/selection", params={"pair": "short"}).status_code == 422

@@ -158,7 +158,7 @@ def _overview(points: np.ndarray) -> Pose:
     centre = (everything.min(axis=0) + everything.max(axis=0)) / 2.0
     radius = max(float(np.linalg.norm(everything - centre, axis=1).max()), 0.3)
     direction = np.array([0.45, -0.55, -1.0]) / np.linalg.norm([0.45, -0.55, -1.0])
-    position = centre + direction * radius * 2.2
+    position = centre + direction * radius * 1.7
     return Pose(tuple(float(x) for x in position), tuple(float(x) for x in centre))  # type: ignore[arg-type]
 
 

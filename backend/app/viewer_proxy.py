@@ -13,30 +13,38 @@ back:
   Origin left out. Otherwise the handshake is refused (HTTP 403): no scene data.
 
 viser's page connects to the websocket at its own address minus the trailing
-slash (``/viewer/`` -> ``/viewer``); with a token the page passes the full
-websocket URL in viser's ``?websocket=`` parameter (``frontend/js/api.js``).
+slash (``/viewer/`` -> ``/viewer``); the page passes the full websocket URL in
+viser's ``?websocket=`` parameter (``frontend/js/api.js``), with the token when
+one is needed, the job on screen (``?job=``) and the page's pairing key
+(``?pair=``). Those two go on to viser as headers (``gate.JOB_HEADER``,
+``gate.PAIR_HEADER``) when they look like an id and a key, so each tab opens on
+the job its page showed, not on whichever was asked for last.
 """
 from __future__ import annotations
 
 import asyncio
+import re
 import urllib.error
 import urllib.parse
 import urllib.request
+from typing import Any
 
 from fastapi import FastAPI, Request, WebSocket
 from fastapi.responses import Response
 
-from ..viewer.gate import KEY_HEADER
+from ..viewer.gate import JOB_HEADER, KEY_HEADER, PAIR_HEADER
 from .errors import ApiError
 from .security import TOKEN_NEEDED, TokenDep, token_ok
 
 MAX_FRAME = 64 * 1024 * 1024  # viser itself allows 50 MB messages
+# what a tab may ask for in its websocket URL, passed on as a header: a job id, the page's pairing key
+ASKS = {"job": (JOB_HEADER, re.compile(r"[0-9a-f]{1,32}")), "pair": (PAIR_HEADER, re.compile(r"[A-Za-z0-9_-]{8,64}"))}
 
 
 def install(app: FastAPI) -> None:
     @app.get("/viewer/{path:path}", include_in_schema=False, dependencies=[TokenDep])
     def viewer_page(path: str, request: Request) -> Response:
-        viewer = _viewer(request.app)
+        viewer = running_viewer(request.app)
         headers = {"Accept-Encoding": request.headers.get("accept-encoding", "identity")}
         # the path arrives decoded ("a%20b" is "a b"): quoted again, it is a URL (urllib refuses spaces)
         url = f"http://{viewer.address}/{urllib.parse.quote(path)}"
@@ -58,10 +66,21 @@ def install(app: FastAPI) -> None:
             # closing before accept refuses the handshake (HTTP 403): nothing of the scene is sent
             await ws.close(code=1008, reason="3D view off" if viewer is None else TOKEN_NEEDED[:120])
             return
-        await relay(ws, f"ws://{viewer.address}/", {KEY_HEADER: viewer.gate.key})
+        await relay(ws, f"ws://{viewer.address}/", {KEY_HEADER: viewer.gate.key, **asked_headers(ws)})
 
 
-def _viewer(app: FastAPI):
+def asked_headers(ws: WebSocket) -> dict[str, str]:
+    """The tab's ``?job=`` and ``?pair=`` as headers for viser; a value of another shape is dropped."""
+    out = {}
+    for param, (header, shape) in ASKS.items():
+        value = ws.query_params.get(param, "")
+        if shape.fullmatch(value):
+            out[header] = value
+    return out
+
+
+def running_viewer(app: FastAPI) -> Any:
+    """The app's 3D view, or a 503 saying it is off."""
     viewer = getattr(app.state, "viewer", None)
     if viewer is None:
         raise ApiError(503, "the 3D view is off on this server (FREECAL_VIEWER=0); start it with FREECAL_VIEWER=1")

@@ -1,7 +1,8 @@
 """Colour maps as numpy functions (no matplotlib): the same maps the page draws.
 
-``sequential`` (error magnitudes: dark blue → yellow, like viridis) and
-``diverging`` (signed offsets: blue → white → red), both (N,) → (N, 3) uint8.
+``sequential`` (error magnitudes: dark blue → yellow, like viridis),
+``diverging`` (signed offsets: blue → white → red), both (N,) → (N, 3) uint8, and
+``categorical`` (one distinct colour per board view, 3D view only).
 Keep the stops in sync with frontend/js/plots/colormap.js.
 """
 from __future__ import annotations
@@ -26,3 +27,15 @@ def sequential(values: np.ndarray, vmax: float) -> np.ndarray:
 def diverging(values: np.ndarray, vabs: float) -> np.ndarray:
     """−vabs … 0 … +vabs → blue … white … red."""
     return _interp(DIVERGING, 0.5 + 0.5 * np.asarray(values, float) / max(vabs, 1e-12))
+
+
+def categorical(n: int) -> np.ndarray:
+    """``n`` colours (n, 3) uint8 that tell views apart: hues evenly around the wheel, two lightnesses
+    alternating so neighbours in the list differ even when n is large."""
+    hue = np.arange(n) / max(n, 1)
+    value = np.where(np.arange(n) % 2 == 0, 0.92, 0.72)
+    sat = 0.75
+    # HSV → RGB, vectorised (colorsys works on one colour at a time)
+    k = (np.array([5.0, 3.0, 1.0])[None, :] + hue[:, None] * 6.0) % 6.0
+    rgb = value[:, None] - value[:, None] * sat * np.clip(np.minimum(k, 4.0 - k), 0.0, 1.0)
+    return (rgb * 255).round().astype(np.uint8)

@@ -16,6 +16,7 @@ from calib_core import Calibration, Observations
 
 from ..base.context import Context
 from ..base.repository import jobs as job_rows
+from ..base.repository import sets as set_rows
 
 
 @dataclass
@@ -82,6 +83,11 @@ def done_jobs(ctx: Context) -> list[dict[str, Any]]:
     """Done calibration jobs that have a calibration, newest first."""
     return [j for j in job_rows.list_all(ctx.db, kind="calibrate", state="done")
             if "calibration.json" in j["artefacts"]]
+
+
+def set_names(ctx: Context) -> dict[str, str]:
+    """Set id → the set's name ("24 images"), for naming jobs as the page does."""
+    return {s["id"]: s["name"] for s in set_rows.list_all(ctx.db)}
 
 
 def _observations(ctx: Context, job: dict[str, Any]) -> Observations | None:

@@ -1,4 +1,4 @@
-"""``build_scene(scene, result)``: one finished job drawn in a viser scene.
+"""``build_scene(scene, result)``: one finished job drawn in a viser scene, so that it explains itself.
 
 Coordinates are the camera frame (OpenCV: x right, y down, z forward), scaled
 so that the median board distance is 1 scene unit (a 25 mm board 900 mm away
@@ -6,15 +6,17 @@ and a 1 m board 30 m away both fill the view); the scene's up is −y.
 
 Nodes, by path (tests and the controls find them by these names):
 
-    /cameras/0/frustum          the camera, at the origin
-    /image_plane/outline        the ideal image plane (image rectangle, ideal pixels) in front of it
-    /image_plane/knots          the B-spline knot grid on that plane (B-spline methods)
+    /cameras/0                  the camera's frame at the origin, its axes drawn
+    /cameras/0/frustum          its body (frustum, the image's aspect and vertical field of view)
+    /cameras/0/x, /y, /z        the axis labels ("x right", "y down", "z optical axis"); /cameras/0/label "camera"
+    /image_plane/outline        the ideal image plane (image rectangle, ideal pixels), nearer than every board
+    /image_plane/knots          the knot grid on that plane: only when the model has a field
     /residuals/vectors          residual vectors on that plane, at the observed corners, magnified
-    /boards/K                   board K's pose (frame: rotation and translation of view K)
-    /boards/K/corners           its corners, coloured by |residual| (px)
-    /boards/K/outline           its outline
-    /field/dx, /field/dy        Δx, Δy surfaces (observed − ideal pixel over the ideal image), colour-mapped
-    /field/dx/label, ...        their labels
+    /boards/K/...               view K's board, in its own colour, with its name (``boards.py``)
+    /field/dx, /field/dy        the Δx, Δy surfaces under the rig (``field.py``)
+
+``Built.view`` is a camera pose for a new tab: behind and above the camera,
+looking at the camera and the boards together.
 """
 from __future__ import annotations
 
@@ -23,24 +25,35 @@ from typing import Any
 
 import numpy as np
 
-from calib_core.report.distortion import distortion_maps
-
 from . import colormap
+from .boards import add_boards, board_points
 from .data import JobResult
+from .field import COMPONENTS, add_field
+from .field import set_component as _set_component
 
-PLANE_DEPTH = 0.5       # the ideal image plane's distance from the camera, scene units
-FIELD_SIZE = 0.9        # width of each distortion surface, scene units
-FIELD_HEIGHT = 0.25     # height of the largest |Δ| on the surfaces, scene units
-FIELD_GRID = (41, 31)   # surface samples along u, v
-COMPONENTS = ("Δx and Δy", "Δx", "Δy")
+PLANE_DEPTH = 0.5       # the ideal image plane's distance from the camera (scene units), unless a board is nearer
+AXIS_LENGTH = 0.2       # the camera's axes, scene units
+__all__ = ["COMPONENTS", "Built", "Pose", "build_scene", "set_component"]
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Where a viewer's camera stands and what it looks at (scene units; up is −y)."""
+
+    position: tuple[float, float, float]
+    look_at: tuple[float, float, float]
+    up: tuple[float, float, float] = (0.0, -1.0, 0.0)
 
 
 @dataclass
 class Built:
-    """What build_scene made: handles by node path, and the numbers a legend needs."""
+    """What build_scene made: handles by node path, the numbers a legend needs, the views in board order,
+    and a camera pose for a new tab."""
 
     handles: dict[str, Any] = field(default_factory=dict)
     legend: dict[str, float] = field(default_factory=dict)
+    views: list[str] = field(default_factory=list)
+    view: Pose = Pose((0.9, -0.8, -0.9), (0.0, 0.3, 0.9))
 
     def names(self) -> list[str]:
         return sorted(self.handles)
@@ -51,12 +64,8 @@ def build_scene(scene: Any, result: JobResult, component: str = COMPONENTS[0]) -
 
     ``component`` chooses the distortion surfaces shown (one of ``COMPONENTS``).
     """
-    import viser.transforms as tf
-
-    built = Built()
+    built = Built(views=[b.name for b in result.boards])
     cal = result.calibration
-    w, h = result.image_size
-    k = cal.to_json()["intrinsics"]
     depths = [float(np.linalg.norm(b.tvec)) for b in result.boards]
     scale = 1.0 / (float(np.median(depths)) if depths and np.median(depths) > 0 else 1.0)
     errors = np.concatenate([np.hypot(*b.residuals.T) for b in result.boards]) if result.boards else np.zeros(1)
@@ -64,34 +73,70 @@ def build_scene(scene: Any, result: JobResult, component: str = COMPONENTS[0]) -
     vmax = float(np.percentile(finite, 95)) if finite.size else 1.0
     vmax = vmax if vmax > 0 else 1.0
     built.legend.update(error_max_px=vmax, scene_unit=1.0 / scale)
+    points = np.concatenate([board_points(b, scale) for b in result.boards]) if result.boards else np.zeros((0, 3))
+    # the image plane stays nearer than every corner, so nothing drawn on it passes through a board
+    near = float(points[:, 2].min()) if len(points) else PLANE_DEPTH / 0.8
+    depth = float(np.clip(0.8 * near, 0.05, PLANE_DEPTH))
 
     scene.reset()
     scene.set_up_direction("-y")
-    add = built.handles.__setitem__
+    _add_camera(scene, built.handles, result, depth)
+    plane = _add_image_plane(scene, built, result, depth, vmax)
+    add_boards(scene, built.handles, result.boards, scale, vmax)
+    drawn = np.vstack([points, plane, np.zeros((1, 3))])   # boards, image plane, camera
+    extent = np.array([drawn.min(axis=0), drawn.max(axis=0)])
+    add_field(scene, built.handles, built.legend, cal, extent, component)
+    built.view = _overview(points)
+    return built
 
-    fov_y = 2.0 * np.arctan2(h / 2.0, k["fy"])
-    add("/cameras/0/frustum", scene.add_camera_frustum(
-        "/cameras/0/frustum", fov=float(fov_y), aspect=w / h, scale=PLANE_DEPTH * 0.6,
-        color=(40, 40, 40), thickness=0.004))
+
+def set_component(built: Built, component: str) -> None:
+    """Show the surfaces ``component`` names, hide the other (no rebuild)."""
+    _set_component(built.handles, component)
+
+
+def _add_camera(scene: Any, handles: dict[str, Any], result: JobResult, depth: float) -> None:
+    """The camera at the origin: its frame with labelled axes, and its frustum reaching the image plane."""
+    w, h = result.image_size
+    fy = result.calibration.to_json()["intrinsics"]["fy"]
+    handles["/cameras/0"] = scene.add_frame("/cameras/0", show_axes=True, axes_length=AXIS_LENGTH,
+                                            axes_radius=AXIS_LENGTH * 0.03)
+    handles["/cameras/0/frustum"] = scene.add_camera_frustum(
+        "/cameras/0/frustum", fov=float(2.0 * np.arctan2(h / 2.0, fy)), aspect=w / h, scale=depth * 0.6,
+        color=(40, 40, 40), thickness=0.004)
+    tips = {"x": ((AXIS_LENGTH * 1.1, 0, 0), "x right"), "y": ((0, AXIS_LENGTH * 1.1, 0), "y down"),
+            "z": ((0, 0, AXIS_LENGTH * 1.1), "z optical axis")}
+    for axis, (tip, text) in tips.items():
+        handles[f"/cameras/0/{axis}"] = scene.add_label(f"/cameras/0/{axis}", text, position=tip,
+                                                        anchor="center-left", font_screen_scale=0.8)
+    handles["/cameras/0/label"] = scene.add_label("/cameras/0/label", "camera", position=(0, -AXIS_LENGTH * 0.4, 0),
+                                                  anchor="bottom-center")
+
+
+def _add_image_plane(scene: Any, built: Built, result: JobResult, depth: float, vmax: float) -> np.ndarray:
+    """The ideal image plane at ``depth``: outline, knot grid (a field only), residual vectors; its corners (4, 3)."""
+    cal = result.calibration
+    w, h = result.image_size
+    k = cal.to_json()["intrinsics"]
+    handles = built.handles
 
     def on_plane(uv: np.ndarray) -> np.ndarray:
         """Ideal pixels (N, 2) → points (N, 3) on the ideal image plane."""
         x = (uv[:, 0] - k["cx"] - k.get("skew", 0.0) * (uv[:, 1] - k["cy"]) / k["fy"]) / k["fx"]
         y = (uv[:, 1] - k["cy"]) / k["fy"]
-        return np.column_stack([x, y, np.ones(len(uv))]) * PLANE_DEPTH
+        return np.column_stack([x, y, np.ones(len(uv))]) * depth
 
-    rect = np.array([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]], float)
-    corners3 = on_plane(rect)
-    add("/image_plane/outline", scene.add_line_segments(
-        "/image_plane/outline", np.stack([corners3, np.roll(corners3, -1, axis=0)], axis=1),
-        colors=(90, 90, 90), thickness=0.002))
-
-    knots = _knot_lines(cal, w, h)
-    if knots is not None:
-        add("/image_plane/knots", scene.add_line_segments(
+    corners = on_plane(np.array([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]], float))
+    handles["/image_plane/outline"] = scene.add_line_segments(
+        "/image_plane/outline", np.stack([corners, np.roll(corners, -1, axis=0)], axis=1),
+        colors=(90, 90, 90), thickness=0.002)
+    knots = _knot_lines(cal)
+    if knots is not None:   # a model without a field has no knots: nothing to draw, no layer to offer
+        handles["/image_plane/knots"] = scene.add_line_segments(
             "/image_plane/knots", np.stack([on_plane(knots[:, 0]), on_plane(knots[:, 1])], axis=1),
-            colors=(230, 120, 20), thickness=0.0015))
+            colors=(230, 120, 20), thickness=0.0015)
 
+    handles["/residuals"] = scene.add_frame("/residuals", show_axes=False)
     if result.boards:
         obs = np.concatenate([b.image_points for b in result.boards])
         res = np.concatenate([b.residuals for b in result.boards])
@@ -99,87 +144,29 @@ def build_scene(scene: Any, result: JobResult, component: str = COMPONENTS[0]) -
         # magnify so the 95th-percentile error spans 1/40 of the image width
         gain = (w / 40.0) / vmax
         built.legend["vector_gain"] = gain
-        start = on_plane(_ideal(cal, obs[ok]))
-        end = on_plane(_ideal(cal, obs[ok]) + gain * res[ok])
+        ideal = _ideal(cal, obs[ok])
         col = colormap.sequential(np.hypot(*res[ok].T), vmax)
-        add("/residuals/vectors", scene.add_line_segments(
-            "/residuals/vectors", np.stack([start, end], axis=1), colors=np.stack([col, col], axis=1),
-            thickness=0.0015))
-
-    for i, b in enumerate(result.boards):
-        base = f"/boards/{i}"
-        add(base, scene.add_frame(base, show_axes=False, wxyz=tf.SO3.exp(b.rvec).wxyz,
-                                  position=b.tvec * scale))
-        pts = b.object_points * scale
-        err = np.hypot(*b.residuals.T)
-        spacing = _spacing(b.object_points) * scale
-        add(base + "/corners", scene.add_point_cloud(
-            base + "/corners", pts, colors=colormap.sequential(err, vmax), point_size=spacing * 0.22,
-            point_shape="circle", point_shading="flat"))
-        lo, hi = b.object_points.min(axis=0) * scale, b.object_points.max(axis=0) * scale
-        box = np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0], [lo[0], hi[1], 0]])
-        add(base + "/outline", scene.add_line_segments(
-            base + "/outline", np.stack([box, np.roll(box, -1, axis=0)], axis=1), colors=(60, 60, 160),
-            thickness=0.002))
-
-    _add_field(scene, built, cal, w, h, component)
-    return built
+        handles["/residuals/vectors"] = scene.add_line_segments(
+            "/residuals/vectors", np.stack([on_plane(ideal), on_plane(ideal + gain * res[ok])], axis=1),
+            colors=np.stack([col, col], axis=1), thickness=0.0015)
+    return corners
 
 
-def set_component(built: Built, component: str) -> None:
-    """Show the surfaces ``component`` names, hide the other (no rebuild)."""
-    for name, shown in (("dx", component in (COMPONENTS[0], "Δx")), ("dy", component in (COMPONENTS[0], "Δy"))):
-        for path in (f"/field/{name}", f"/field/{name}/label"):
-            if path in built.handles:
-                built.handles[path].visible = shown
+def _overview(points: np.ndarray) -> Pose:
+    """Behind, above and to the right of the camera, far enough to see it and every board."""
+    everything = np.vstack([points, np.zeros((1, 3))])
+    centre = (everything.min(axis=0) + everything.max(axis=0)) / 2.0
+    radius = max(float(np.linalg.norm(everything - centre, axis=1).max()), 0.3)
+    direction = np.array([0.45, -0.55, -1.0]) / np.linalg.norm([0.45, -0.55, -1.0])
+    position = centre + direction * radius * 1.7
+    return Pose(tuple(float(x) for x in position), tuple(float(x) for x in centre))  # type: ignore[arg-type]
 
 
-def _add_field(scene: Any, built: Built, cal: Any, w: int, h: int, component: str) -> None:
-    """The Fig. 13 surfaces: Δx and Δy over the image, side by side below the rig."""
-    import trimesh
-
-    nu, nv = FIELD_GRID
-    u, v = np.meshgrid(np.linspace(0, w - 1, nu), np.linspace(0, h - 1, nv))
-    # the same data and colour scale as the page's 2-D map (calib_core.report.distortion): the field's
-    # own part when there is a field over a core, else the offsets against the pinhole; values past
-    # the scale (the 98th percentile) saturate
-    doc = distortion_maps(cal, FIELD_GRID)
-    m = doc["maps"]["field" if "field" in doc["maps"] else "pinhole"]
-    delta = np.column_stack([np.array([np.nan if x is None else x for x in m[c]], float) for c in ("dx", "dy")])
-    delta = np.where(np.isfinite(delta), delta, 0.0)
-    vabs = float(m["scale"])
-    delta = np.clip(delta, -vabs, vabs)
-    built.legend["field_max_px"] = vabs
-    size_v = FIELD_SIZE * h / w
-    faces = _grid_faces(nu, nv)
-    for j, name in enumerate(("dx", "dy")):
-        # lay each surface flat below the rig (y is down, so +y), the value rising upward (−y)
-        x = (u.ravel() / (w - 1) - 0.5) * FIELD_SIZE + (j - 0.5) * FIELD_SIZE * 1.15
-        z = 1.0 + (v.ravel() / (h - 1) - 0.5) * size_v
-        y = 0.75 - delta[:, j] / vabs * FIELD_HEIGHT
-        rgba = np.column_stack([colormap.diverging(delta[:, j], vabs), np.full(len(x), 255, np.uint8)])
-        mesh = trimesh.Trimesh(np.column_stack([x, y, z]), faces, vertex_colors=rgba, process=False)
-        path = f"/field/{name}"
-        built.handles[path] = scene.add_mesh_trimesh(path, mesh)
-        label = "Δx" if name == "dx" else "Δy"
-        built.handles[path + "/label"] = scene.add_label(
-            path + "/label", f"{label} [px], ±{vabs:.3g} px", position=(float(x.mean()), 0.75 - FIELD_HEIGHT * 1.3,
-                                                                        float(z.min())))
-    set_component(built, component)
-
-
-def _grid_faces(nu: int, nv: int) -> np.ndarray:
-    idx = np.arange(nu * nv).reshape(nv, nu)
-    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
-    # both windings, so the surface is visible from above and below
-    return np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d]),
-                           np.column_stack([a, c, b]), np.column_stack([a, d, c])])
-
-
-def _knot_lines(cal: Any, w: int, h: int) -> np.ndarray | None:
-    """Segments (M, 2, 2) in ideal pixels along the knot breaks of a B-spline field, or None."""
+def _knot_lines(cal: Any) -> np.ndarray | None:
+    """Segments (M, 2, 2) in ideal pixels along the knot breaks of the model's field, or None: no field,
+    or one held at zero (a core chosen alone keeps its field's knots, fitting nothing)."""
     breaks = cal.model.knot_breaks()
-    if breaks is None:
+    if breaks is None or getattr(cal.model, "field_held", False):
         return None
     bu, bv = breaks[0].tolist(), breaks[1].tolist()
     segs = [[[x, bv[0]], [x, bv[-1]]] for x in bu] + [[[bu[0], y], [bu[-1], y]] for y in bv]
@@ -191,12 +178,3 @@ def _ideal(cal: Any, uv: np.ndarray) -> np.ndarray:
     with np.errstate(all="ignore"):
         ideal = cal.undistort_points(uv)
     return np.where(np.isfinite(ideal), ideal, uv)
-
-
-def _spacing(object_points: np.ndarray) -> float:
-    """Typical distance between neighbouring corners (board units)."""
-    if len(object_points) < 2:
-        return 1.0
-    d = np.linalg.norm(object_points[1:] - object_points[:-1], axis=1)
-    d = d[d > 0]
-    return float(np.median(d)) if d.size else 1.0

@@ -1,9 +1,12 @@
 """The viser server inside the API process: one scene and one set of controls per browser tab.
 
-viser has no way to pick content from the URL, so a tab opens on the job the
-page asked for last (``focus``, set by POST /api/viewer) or else the newest
-done job; its controls then switch job, method and distortion component for
-that tab alone (per-client scenes: two tabs never fight over one scene).
+viser's client cannot tell the server its URL, but the proxy passes what the
+tab's URL asked for (``gate.Asked``: the job on the page's screen, the page's
+pairing key), so a tab opens on the job its page showed; without one, on the
+job asked for last by POST /api/viewer (``focus``), else the newest done job.
+Its controls then switch job, method, layers and distortion component for that
+tab alone (per-client scenes: two tabs never fight over one scene), and the
+view selected on its page is highlighted (``selection.py``), both ways.
 """
 from __future__ import annotations
 
@@ -15,7 +18,11 @@ from typing import Any
 from ..base.context import Context
 from . import data
 from .gate import ProxyOnly
-from .scene import COMPONENTS, Built, build_scene, set_component
+from .layers import LAYERS, highlight, present, set_layers
+from .legend import legend
+from .names import job_label, unique_labels
+from .scene import COMPONENTS, Built, Pose, build_scene, set_component
+from .selection import Selected, Selections
 
 log = logging.getLogger("freecal.viewer")
 NONE = "(no finished job yet)"
@@ -26,16 +33,24 @@ class Session:
     """One connected tab: its client handle, what it shows, its controls (``gui_*``)."""
 
     client: Any
+    pair: str = ""
     job_id: str | None = None
     component: str = COMPONENTS[0]
+    layers: dict[str, bool] = field(default_factory=lambda: dict.fromkeys(LAYERS, True))
+    selected_view: str | None = None
     built: Built = field(default_factory=Built)
     labels: dict[str, str] = field(default_factory=dict)   # job dropdown label → job id
     gui: dict[str, Any] = field(default_factory=dict)
     lock: threading.Lock = field(default_factory=threading.Lock)
 
     def describe(self) -> dict[str, Any]:
+        visible = {name: bool(self.built.handles[path].visible) for name, path in LAYERS.items()
+                   if path in self.built.handles}
         return {"client_id": self.client.client_id, "job_id": self.job_id, "component": self.component,
-                "nodes": self.built.names()}
+                "job_label": next((lab for lab, jid in self.labels.items() if jid == self.job_id), None),
+                "nodes": self.built.names(), "layers": visible, "selected_view": self.selected_view,
+                "highlighted": [self.built.views[i] for i in range(len(self.built.views))
+                                if getattr(self.built.handles.get(f"/boards/{i}/highlight"), "visible", False)]}
 
 
 class Viewer:
@@ -52,13 +67,15 @@ class Viewer:
         self.host = host
         self.focus: str | None = None
         self.sessions: dict[int, Session] = {}
+        self.selections = Selections()
         self.server = viser.ViserServer(host=host, port=port, label="freecal 3D view", verbose=False)
         self.gate = ProxyOnly(self.server)   # first: before any callback that sends freecal's data
         self.server.gui.configure_theme(control_layout="floating", control_width="large", show_logo=False)
-        # every tab starts behind and above the camera, looking at the boards (scene: y down, 1 = board distance)
-        self.server.initial_camera.up = (0.0, -1.0, 0.0)
-        self.server.initial_camera.position = (0.9, -0.8, -0.9)
-        self.server.initial_camera.look_at = (0.0, 0.3, 0.9)
+        # a tab's first frame, before its camera is aimed at its own scene (``_aim``): behind and above the camera
+        default = Built().view
+        self.server.initial_camera.up = default.up
+        self.server.initial_camera.position = default.position
+        self.server.initial_camera.look_at = default.look_at
         self.server.on_client_connect(self._connect)
         self.server.on_client_disconnect(lambda client: self.sessions.pop(client.client_id, None))
 
@@ -78,33 +95,49 @@ class Viewer:
     def describe(self) -> list[dict[str, Any]]:
         return [s.describe() for s in list(self.sessions.values())]
 
+    def select(self, pair: str, view: str | None) -> Selected:
+        """The page paired by ``pair`` selected ``view``: highlight it in that page's tabs."""
+        chosen = self.selections.choose(pair, view, "page")
+        for session in list(self.sessions.values()):
+            if session.pair == pair:
+                self._highlight(session, view)
+        return chosen
+
     # ---- one tab ---------------------------------------------------------------------
     def _connect(self, client: Any) -> None:
         if not self.gate.admitted(client.client_id):
             return   # not through the proxy: no job list, no scene
-        session = Session(client)
+        asked = self.gate.asked(client.client_id)
+        session = Session(client, pair=asked.pair)
         self.sessions[client.client_id] = session
         gui = client.gui
         jobs = self._job_labels(session)
-        first = next((label for label, jid in session.labels.items() if jid == self.focus), jobs[0])
+        wanted = [asked.job_id, self.focus]
+        first = next((lab for want in wanted for lab, jid in session.labels.items() if want and jid == want), jobs[0])
         session.gui["gui_job"] = gui.add_dropdown("Job", jobs, initial_value=first)
         session.gui["gui_method"] = gui.add_dropdown("Method", ["—"], initial_value="—")
         session.gui["gui_component"] = gui.add_dropdown("Surfaces", COMPONENTS, initial_value=COMPONENTS[0])
+        with gui.add_folder("Layers"):
+            for name in LAYERS:
+                box = session.gui[f"gui_layer_{name}"] = gui.add_checkbox(name, initial_value=True)
+                box.on_update(lambda _, name=name: self._set_layer(session, name))
+        session.gui["gui_overview"] = gui.add_button("Overview (camera and boards)")
         session.gui["gui_refresh"] = gui.add_button("Reload job list")
         session.gui["gui_legend"] = gui.add_markdown("")
         session.gui["gui_job"].on_update(lambda _: self._show(session, session.labels.get(
             session.gui["gui_job"].value)))
         session.gui["gui_method"].on_update(lambda _: self._pick_method(session))
         session.gui["gui_component"].on_update(lambda _: self._set_component(session))
+        session.gui["gui_overview"].on_click(lambda _: self._aim(session, session.built.view))
         session.gui["gui_refresh"].on_click(lambda _: self._refresh(session))
+        if asked.pair:
+            session.selected_view = self.selections.get(asked.pair).view
         self._show(session, session.labels.get(first))
 
     def _job_labels(self, session: Session) -> list[str]:
-        session.labels = {}
-        for job in data.done_jobs(self.ctx):
-            rmse = (job["summary"].get("metrics") or {}).get("rmse")
-            label = f"{job['id']} · {job['method']}" + (f" · {rmse:.3f} px" if isinstance(rmse, float) else "")
-            session.labels[label] = job["id"]
+        names = data.set_names(self.ctx)
+        session.labels = unique_labels([(j["id"], job_label(j, names.get(j["set_id"] or "")))
+                                        for j in data.done_jobs(self.ctx)])
         return list(session.labels) or [NONE]
 
     def _refresh(self, session: Session) -> None:
@@ -124,8 +157,43 @@ class Viewer:
                 return
             with session.client.atomic():
                 session.built = build_scene(session.client.scene, result, session.component)
+                set_layers(session.built.handles, session.layers)
+                highlight(session.built.handles, session.built.views, session.selected_view)
+            self._on_board_click(session)
+            has = present(session.built.handles)
+            # no field, no knots: the box stays, greyed, and the legend says why
+            session.gui["gui_layer_Knot grid"].disabled = "Knot grid" not in has
             self._methods(session, result)
-            session.gui["gui_legend"].content = _legend(result, session.built)
+            session.gui["gui_legend"].content = legend(result, session.built)
+        # viser calls a tab connected once it has reported its camera: it can be aimed from the start
+        self._aim(session, session.built.view)
+
+    def _on_board_click(self, session: Session) -> None:
+        """A board clicked in 3D selects its view here and on the paired page."""
+        for i, view in enumerate(session.built.views):
+            sheet = session.built.handles.get(f"/boards/{i}/plane")
+            if sheet is not None:
+                sheet.on_click(lambda _, view=view: self._clicked(session, view))
+
+    def _clicked(self, session: Session, view: str) -> None:
+        if session.pair:
+            self.selections.choose(session.pair, view, "3d")
+            for other in list(self.sessions.values()):
+                if other.pair == session.pair:
+                    self._highlight(other, view)
+        else:
+            self._highlight(session, view)
+
+    def _highlight(self, session: Session, view: str | None) -> None:
+        session.selected_view = view
+        highlight(session.built.handles, session.built.views, view)
+
+    def _aim(self, session: Session, pose: Pose) -> None:
+        """Put the tab's camera at ``pose`` (position first: viser moves look_at along with it)."""
+        camera = session.client.camera
+        camera.up_direction = pose.up
+        camera.position = pose.position
+        camera.look_at = pose.look_at
 
     def _methods(self, session: Session, result: data.JobResult) -> None:
         """The method dropdown lists the methods with a done job on the same set."""
@@ -150,22 +218,11 @@ class Viewer:
         session.component = session.gui["gui_component"].value
         set_component(session.built, session.component)
 
+    def _set_layer(self, session: Session, name: str) -> None:
+        session.layers[name] = bool(session.gui[f"gui_layer_{name}"].value)
+        set_layers(session.built.handles, {name: session.layers[name]})
+
     def _job(self, job_id: str) -> dict[str, Any] | None:
         from ..base.repository import jobs
 
         return jobs.get(self.ctx.db, job_id)
-
-
-def _legend(result: data.JobResult, built: Built) -> str:
-    lg = built.legend
-    rmse = result.calibration.metrics.get("rmse")
-    return "\n".join([
-        f"**{result.method}**, {len(result.boards)} board poses" + (f", rmse {rmse:.3f} px" if rmse else ""),
-        f"- corners and vectors: colour = |residual|, 0 to {lg.get('error_max_px', 0):.2f} px (95th percentile);"
-        f" vectors ×{lg.get('vector_gain', 0):.0f}",
-        f"- surfaces: Δx, Δy (the field's own part over its core, else observed − ideal pinhole pixel: the page's map), blue −{lg.get('field_max_px', 0):.1f} px … red "
-        f"+{lg.get('field_max_px', 0):.1f} px (98th percentile; beyond it clipped)",
-        "- orange lines: knot grid on the ideal image plane" if "/image_plane/knots" in built.handles
-        else "- grey rectangle: the ideal image plane (no knots: not a B-spline method)",
-        f"- 1 scene unit = {lg.get('scene_unit', 0):.0f} {result.units} (the median board distance)",
-    ])

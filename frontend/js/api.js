@@ -50,16 +50,16 @@ export function apiUrl(path, params = {}) {
 }
 
 /** The 3D view's page (the API's /viewer proxy). viser's page opens its websocket at its own address
- * without the query, so with a token it is given the whole websocket URL (viser reads ?websocket=). */
+ * without the query, so it is given the whole websocket URL (viser reads ?websocket=) carrying ``params``
+ * (the job to open on, the page's pairing key: the proxy passes them on) and the token when needed. */
 export function viewerUrl(base, params = {}) {
   const page = new URL(apiUrl(base, params), window.location.origin);
+  const ws = new URL(page.pathname.replace(/\/$/, ""), window.location.origin);
+  ws.protocol = page.protocol === "https:" ? "wss:" : "ws:";
+  for (const [k, v] of Object.entries(params)) ws.searchParams.set(k, v);
   const token = currentToken();
-  if (token) {
-    const ws = new URL(page.pathname.replace(/\/$/, ""), window.location.origin);
-    ws.protocol = page.protocol === "https:" ? "wss:" : "ws:";
-    ws.searchParams.set("token", token);
-    page.searchParams.set("websocket", ws.href);
-  }
+  if (token) ws.searchParams.set("token", token);
+  page.searchParams.set("websocket", ws.href);
   return page.pathname + page.search;
 }
 
@@ -82,7 +82,8 @@ export const api = {
   rectifiedUrl: (id, name) => apiUrl(`/api/jobs/${id}/rectified/${encodeURIComponent(name)}`),
   mapsUrl: (id) => apiUrl(`/api/jobs/${id}/maps.npz`),
   viewer: () => request("GET", "/api/viewer"),
-  openViewer: (jobId) => request("POST", "/api/viewer", { job_id: jobId }),
+  viewSelection: (pair) => request("GET", `/api/viewer/selection?pair=${encodeURIComponent(pair)}`),
+  selectView: (pair, view) => request("POST", "/api/viewer/selection", { pair, view }),
 };
 
 export const thumbUrl = (setId, name, size = 160) =>

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import io
 import json
+import urllib.parse
 from pathlib import Path
 
 import pytest
@@ -140,18 +141,38 @@ def test_upload_watch_review_download_and_3d(browser, service, shots, tmp_path):
 
     shown = wait_for(scene, 60, "the 3D view to connect and draw the job", service.logs())
     nodes = set(shown["nodes"])
-    for name in ("/cameras/0/frustum", "/image_plane/knots", "/residuals/vectors", "/field/dx", "/field/dy"):
+    for name in ("/cameras/0/frustum", "/cameras/0/z", "/image_plane/knots", "/residuals/vectors", "/field/dx",
+                 "/field/dy"):
         assert name in nodes, name
     boards = {n.split("/")[2] for n in nodes if n.startswith("/boards/") and n.endswith("/corners")}
-    assert len(boards) == len(cal.views)
+    assert len(boards) == len(cal.views) and all(f"/boards/{b}/label" in nodes for b in boards)
+    assert shown["layers"] == {"Boards": True, "Residual vectors": True, "Knot grid": True, "Field surfaces": True}
+    # the embedded view and the new-tab link both name the job on screen (the websocket URL carries it)
+    for url in (frame.get_attribute("src"), page.get_attribute("#open-3d-tab", "href")):
+        assert f"job={job_id}" in urllib.parse.unquote(url), url
+    # a row picked in the per-view table turns its board gold in 3D
+    row = page.locator("#metrics-views tbody tr[data-view]").nth(1)
+    picked = row.get_attribute("data-view")
+    row.locator("th").click()
+    assert "view-selected" in row.get_attribute("class")
+    wait_for(lambda: (scene() or {}).get("highlighted") == [picked], 20, "the picked view highlighted in 3D",
+             service.logs())
     view = frame.content_frame()
     notice = view.locator("[class*=Notification] button")  # viser's software-WebGL notice
     if notice.count():
         notice.first.click()
     # the panel's surface control reaches this tab's scene
-    view.get_by_label("Surfaces").click()
+    view.get_by_role("combobox", name="Surfaces").click()
     view.get_by_role("option", name="Δy", exact=True).click()
     wait_for(lambda: (scene() or {}).get("component") == "Δy", 20, "the Surfaces control to switch to Δy",
+             service.logs())
+    # and a layer box hides its layer in this tab's scene (and shows it again)
+    boards_box = view.get_by_role("checkbox", name="Boards")
+    boards_box.click()
+    wait_for(lambda: (scene() or {}).get("layers", {}).get("Boards") is False, 20, "the Boards layer hidden",
+             service.logs())
+    boards_box.click()
+    wait_for(lambda: (scene() or {}).get("layers", {}).get("Boards") is True, 20, "the Boards layer shown",
              service.logs())
     page.wait_for_timeout(3000)  # let WebGL (SwiftShader) draw a few frames before the screenshot
     page.screenshot(path=shots / "06-viewer.png")

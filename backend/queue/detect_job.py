@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from calib_core import Observations
+from calib_core.detection.image_circle import Circle
 from calib_core.errors import DataError
 
 from ..base import storage
@@ -28,6 +29,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     from calib_core.board import BoardSpec
     from calib_core.detection.board_size import suggest_size
     from calib_core.detection.detect import detect_images, none_found
+    from calib_core.detection.image_circle import circle_json, common_circle
 
     set_id = job["set_id"]
     row = sets.get(ctx.db, set_id)
@@ -40,6 +42,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     size = max(1, math.ceil(len(names) / BATCHES))
     views, warnings = [], []
     image_size: tuple[int, int] | None = None
+    circles: list = []  # each photo read: its image circle, or None
     run.progress("detect", 0.0, 0.0, DETECTED)
     for start in range(0, len(names), size):
         batch = names[start:start + size]
@@ -49,6 +52,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
             run.progress("detect", (done + k) / len(names), 0.0, DETECTED)
 
         det = detect_images([folder / n for n in batch], board, progress=progress)
+        circles += [r.image_circle for r in det.reports if r.width is not None]
         reports = [_report(r) for r in det.reports]
         if det.observations is not None:
             if image_size is None:
@@ -65,9 +69,10 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
         warnings += [w for w in det.warnings if w not in warnings]
         sets.record_reports(ctx.db, set_id, reports)
         run.progress("detect", (start + len(batch)) / len(names), 0.0, DETECTED)
-    coverage, warning = measure_coverage(views, image_size)
+    circle = common_circle(circles)
+    coverage, warning = measure_coverage(views, image_size, circle)
     # per batch, superseded by the set's own: coverage, the board found in none, images rejected
-    per_batch = ("no corners in the ", " was found in none of the ", " images rejected (see the report")
+    per_batch = ("no corners in the ", "no corners near the edge of the image circle", " was found in none of the ", " images rejected (see the report")
     warnings = [w for w in warnings if not any(b in w for b in per_batch)]
     if warning:
         warnings.append(warning)
@@ -83,7 +88,8 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
                           warnings, len(views))
     if not views or image_size is None:
         raise DataError(none_found(board, len(names)) + (f"; {suggestion['message']}" if suggestion else ""))
-    obs = Observations(image_size, views, board.to_json())
+    obs = Observations(image_size, views, board.to_json(),
+                       {} if circle is None else {"image_circle": circle_json(circle)})
     storage.write_json(ctx.storage.observations_path(set_id), obs.to_json())
     return {"artefacts": ["observations.json"], "summary": {"n_views": len(views), "n_images": len(names)}}
 
@@ -107,10 +113,12 @@ def _report(r: Any) -> dict[str, Any]:
     return {k: d.get(k) for k in keys}
 
 
-def measure_coverage(views: list, image_size: tuple[int, int] | None) -> tuple[dict[str, Any] | None, str | None]:
+def measure_coverage(views: list, image_size: tuple[int, int] | None,
+                     circle: Circle | None = None) -> tuple[dict[str, Any] | None, str | None]:
+    """The set's coverage (only inside the lens's image ``circle``, if the photos have one) and its advice."""
     from calib_core.evaluation.coverage import coverage, coverage_warning
 
     if not views or image_size is None:
         return None, None
-    cov = coverage(np.concatenate([v.image_points for v in views]), image_size)
+    cov = coverage(np.concatenate([v.image_points for v in views]), image_size, circle=circle)
     return cov, coverage_warning(cov)

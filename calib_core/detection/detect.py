@@ -25,6 +25,7 @@ from ..evaluation.coverage import coverage, coverage_warning
 from ..observations import Observations, View
 from ..target import Target
 from .detect_image import MIN_CORNERS, ImageResult, detect_file
+from .image_circle import Circle, circle_json, common_circle
 from .targets import detect_target_file
 
 # What the command line and the service read (the service checks each one's header: backend/app/image_header.py)
@@ -41,6 +42,7 @@ class ImageReport:
     width: int | None
     height: int | None
     boards: list[dict] | None = None  # with a target: each board's name, corners, whether placed, why not
+    image_circle: Circle | None = None  # a fisheye's lit disc (cx, cy, r) px, if it has one
 
     def to_json(self) -> dict:
         return asdict(self)
@@ -53,6 +55,7 @@ class Detection:
     coverage: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     model_added: int | None = None  # corners the re-detection through ``calibration`` added (None: none given)
+    image_circle: Circle | None = None  # the set's (``image_circle.common_circle``), if any
 
 
 def image_paths(items: Iterable[str | Path]) -> list[Path]:
@@ -257,7 +260,8 @@ def _size_spec(target: Target, label: str) -> BoardSpec:
 
 def _report(r: ImageResult) -> ImageReport:
     boards = None if r.boards is None else [h.to_json() for h in r.boards]
-    return ImageReport(r.name, r.status, r.n_corners, r.reason, r.sharpness, r.width, r.height, boards)
+    return ImageReport(r.name, r.status, r.n_corners, r.reason, r.sharpness, r.width, r.height, boards,
+                       r.image_circle)
 
 
 def _assemble(results: list[ImageResult], board: BoardSpec | Target) -> Detection:
@@ -271,15 +275,17 @@ def _assemble(results: list[ImageResult], board: BoardSpec | Target) -> Detectio
         return Detection(None, reports, {}, warnings)
     size = _image_size(used[0])
     views = [v for r in used for v in _views(r, board)]
+    circle = common_circle([r.image_circle for r in results if r.width is not None])
+    extra = {} if circle is None else {"image_circle": circle_json(circle)}
     if isinstance(board, BoardSpec):
-        obs = Observations(size, views, board.to_json())
+        obs = Observations(size, views, board.to_json(), extra)
     else:
-        obs = Observations(size, views, None, {"target": board.to_json()})
-    cov = coverage(np.concatenate([v.image_points for v in views]), size)
+        obs = Observations(size, views, None, {"target": board.to_json(), **extra})
+    cov = coverage(np.concatenate([v.image_points for v in views]), size, circle=circle)
     msg = coverage_warning(cov)
     if msg:
         warnings.append(msg)
     rejected = len(results) - len(used)
     if rejected:
         warnings.append(f"{rejected} of {len(results)} images rejected (see the report for why)")
-    return Detection(obs, reports, cov, warnings)
+    return Detection(obs, reports, cov, warnings, image_circle=circle)

@@ -25,6 +25,7 @@ from ..board import BoardSpec
 from . import aprilgrid, charuco
 from .grid import expand, gap_strides, lattice_score, place_grid
 from .grow import grow_board
+from .image_circle import Circle, find_image_circle
 from .markers import Markers
 from .model_guided import model_guided
 
@@ -60,6 +61,7 @@ class ImageResult:
     points: np.ndarray | None = None
     model_added: int | None = None   # corners the re-detection through a calibration added
     boards: list[BoardHit] | None = None   # a target's boards, found or not (targets.py); ids/points: the object's
+    image_circle: Circle | None = None   # a fisheye's lit disc (cx, cy, r), None: lit to the border
 
 
 def read_gray(path: str | Path) -> np.ndarray | None:
@@ -108,6 +110,7 @@ def on_file(path: str | Path, name: str | None, detect: Callable[[np.ndarray], I
             return ImageResult(name, "rejected", 0, "could not decode the file as an image")
         res = detect(gray)
         res.name = name
+        res.image_circle = find_image_circle(gray)  # here, where every detector's image is decoded once
         return res
     except Exception as exc:  # a detector crash on one image must not cost the others
         log.warning("detection failed on %s: %s: %s", name, type(exc).__name__, exc)  # the raw text: for the log

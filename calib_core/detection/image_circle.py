@@ -1,4 +1,4 @@
-"""Where a fisheye's image circle ends: the unlit frame around it.
+"""Where a fisheye's image circle ends: the unlit frame around it, and the circle itself.
 
 A corner whose refinement window reaches into the unlit region is not a
 corner of the board: its dark quadrants merge with the void and cornerSubPix
@@ -38,3 +38,115 @@ def _border_lit(gray: np.ndarray) -> bool:
     r = BLUR_REACH + 1
     strips = (gray[:r], gray[-r:], gray[:, :r], gray[:, -r:])
     return min(int(s.min()) for s in strips) >= UNLIT
+
+
+# ---- the image circle itself: where the lens's light ends, as a circle ---------------------------
+# (for the coverage advice: ``evaluation.coverage`` counts and names only cells inside it)
+
+Circle = tuple[float, float, float]  # cx, cy, radius in pixels
+
+CIRCLE_WORK_SIDE = 400   # px: the circle is found on a copy this long, a few px are enough for coverage cells
+CIRCLE_RAYS = 180        # directions from the frame's centre in which the outermost lit pixel is looked for
+LIT_ABOVE_BLACK = 10     # grey levels above the frame's black that count as light (video black is 16, not 0)
+MAX_FRAME_BLACK = 40     # a frame darker than this at its 5th percentile may hold an image circle
+MIN_DARK_FRAME = 0.3     # share of the frame's border that must be black: a photo lit to its border has no circle
+MIN_RIM_RAYS = 0.25      # share of the rays that must end inside the frame (not leave it lit)
+MIN_ON_CIRCLE = 0.5      # share of those rays' ends within RIM_TOLERANCE of the fitted circle
+RIM_TOLERANCE = 0.01     # of the radius (at least 1.5 px of the working copy)
+MIN_CIRCLE_SHARE = 0.5   # of a set's photos that must show the circle for the set to have one
+
+
+def find_image_circle(gray: np.ndarray) -> Circle | None:
+    """(cx, cy, radius) in pixels of the lit disc of a fisheye whose image circle
+    ends inside the frame (black around it), or None for an image lit to its border.
+
+    In each direction from the frame's centre the outermost lit pixel is the rim
+    (a dark scene inside the circle does not move it, unlike the edge of the unlit
+    region); directions that leave the frame lit are skipped (a circle cut by the
+    frame), and a circle is fitted to the rest, ignoring ends off it (a dark rim).
+    """
+    h, w = gray.shape
+    k = min(1.0, CIRCLE_WORK_SIDE / max(h, w))
+    small = cv2.resize(gray, (round(w * k), round(h * k)), interpolation=cv2.INTER_AREA) if k < 1 else gray
+    sh, sw = small.shape
+    frame = np.concatenate([small[0], small[-1], small[:, 0], small[:, -1]])
+    black = float(np.percentile(frame, 5))
+    if black > MAX_FRAME_BLACK or np.mean(frame <= black + LIT_ABOVE_BLACK) < MIN_DARK_FRAME:
+        return None
+    ends = _outermost_lit(cv2.GaussianBlur(small, (0, 0), 1.0) > black + LIT_ABOVE_BLACK)
+    leaves = (ends[:, 0] <= 1) | (ends[:, 1] <= 1) | (ends[:, 0] >= sw - 2) | (ends[:, 1] >= sh - 2)
+    ends = ends[~leaves]
+    if len(ends) < MIN_RIM_RAYS * CIRCLE_RAYS:
+        return None
+    cx, cy, r = _robust_circle(ends)
+    on = _on_circle(ends, (cx, cy, r))
+    if on.mean() < MIN_ON_CIRCLE or r < 0.25 * min(sw, sh) or not (0 <= cx < sw and 0 <= cy < sh):
+        return None
+    # pixel centres: full = (small + 0.5) / k - 0.5
+    return (cx + 0.5) / k - 0.5, (cy + 0.5) / k - 0.5, r / k
+
+
+def common_circle(circles: list[Circle | None]) -> Circle | None:
+    """The image circle of a set (one per photo read, None where none was found): the
+    median of the photos' circles when at least half of them show one, else None."""
+    found = [c for c in circles if c is not None]
+    if not circles or len(found) < MIN_CIRCLE_SHARE * len(circles):
+        return None
+    cx, cy, r = np.median(np.asarray(found, dtype=np.float64), axis=0)
+    return float(cx), float(cy), float(r)
+
+
+def circle_json(circle: Circle | None) -> dict[str, float] | None:
+    """The circle as stored with the coverage and the observations: ``{"cx", "cy", "radius"}`` px."""
+    if circle is None:
+        return None
+    cx, cy, r = circle
+    return {"cx": round(cx, 1), "cy": round(cy, 1), "radius": round(r, 1)}
+
+
+def circle_from_json(doc: object) -> Circle | None:
+    """``circle_json``'s form read back; None for anything else (no circle recorded, or another tool's field)."""
+    try:
+        return float(doc["cx"]), float(doc["cy"]), float(doc["radius"])  # type: ignore[index]
+    except (TypeError, KeyError, ValueError):
+        return None
+
+
+def _outermost_lit(lit: np.ndarray) -> np.ndarray:
+    """(n, 2) x, y of the lit pixel farthest from the centre in each of CIRCLE_RAYS directions that has one."""
+    yy, xx = np.nonzero(lit)
+    oy, ox = (lit.shape[0] - 1) / 2, (lit.shape[1] - 1) / 2
+    ray = ((np.arctan2(yy - oy, xx - ox) + np.pi) / (2 * np.pi) * CIRCLE_RAYS).astype(np.int64) % CIRCLE_RAYS
+    order = np.lexsort((np.hypot(xx - ox, yy - oy), ray))
+    last = np.r_[np.nonzero(np.diff(ray[order]))[0], len(order) - 1] if len(order) else np.zeros(0, np.int64)
+    return np.column_stack([xx[order][last], yy[order][last]]).astype(np.float64)
+
+
+def _robust_circle(pts: np.ndarray, trials: int = 200) -> Circle:
+    """The circle through most of pts (n, 2): the best of ``trials`` circles through three of
+    them (RANSAC, seeded: the same photo gives the same circle), refitted on those it holds.
+    A dark stretch of the rim ends its rays short, inside the circle: a least-squares fit to
+    all of them would be pulled inwards."""
+    rng = np.random.default_rng(0)
+    best = np.zeros(len(pts), bool)
+    for k in rng.integers(0, len(pts), (trials, 3)):
+        try:
+            on = _on_circle(pts, _fit_circle(pts[k]))
+        except np.linalg.LinAlgError:
+            continue
+        if on.sum() > best.sum():
+            best = on
+    return _fit_circle(pts[best] if best.sum() >= 3 else pts)
+
+
+def _on_circle(pts: np.ndarray, circle: Circle) -> np.ndarray:
+    cx, cy, r = circle
+    return np.abs(np.hypot(pts[:, 0] - cx, pts[:, 1] - cy) - r) < max(1.5, RIM_TOLERANCE * r)
+
+
+def _fit_circle(pts: np.ndarray) -> Circle:
+    """Least-squares circle through pts (n, 2): x² + y² = 2 cx x + 2 cy y + c (Kåsa's fit)."""
+    x, y = pts[:, 0], pts[:, 1]
+    sol, *_ = np.linalg.lstsq(np.column_stack([x, y, np.ones_like(x)]), x * x + y * y, rcond=None)
+    cx, cy = sol[0] / 2, sol[1] / 2
+    return float(cx), float(cy), float(np.sqrt(max(sol[2] + cx * cx + cy * cy, 0.0)))

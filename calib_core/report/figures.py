@@ -189,25 +189,33 @@ def uncertainty_map(unc: dict[str, Any]) -> bytes:
 
 
 def coverage_map(cov: dict[str, Any]) -> bytes:
-    """Corners per image cell over all views; empty cells red."""
+    """Corners per image cell over all views; empty cells red. With a fisheye's image
+    circle: the circle drawn, and the cells outside it grey, unlabelled (not counted)."""
     plt = _pyplot()
     counts = np.asarray(cov["counts"], float)
     gx, gy = cov["grid"]
     w, h = cov["image_size"]
+    inside = np.asarray(cov.get("inside") or np.ones((gy, gx), bool), bool)
     fig, ax = _image_axes(plt, (w, h), f"Coverage: corners per cell, {100 * cov['fraction_covered']:.0f} % of cells covered")
     ax.imshow(np.ma.masked_equal(counts, 0), extent=(0, w, h, 0), cmap="Blues", vmin=0, interpolation="nearest")
-    empty = np.zeros((gy, gx, 4))
-    empty[counts == 0] = (0.98, 0.85, 0.85, 1)
-    ax.imshow(empty, extent=(0, w, h, 0), interpolation="nearest")
+    shade = np.zeros((gy, gx, 4))
+    shade[(counts == 0) & inside] = (0.98, 0.85, 0.85, 1)
+    shade[~inside] = (0.8, 0.8, 0.8, 1)
+    ax.imshow(shade, extent=(0, w, h, 0), interpolation="nearest")
     cw, ch = w / gx, h / gy
     peak = max(1.0, float(counts.max()))
-    for j, i in np.ndindex(gy, gx):  # one label per cell (a few dozen), not per point
+    for j, i in zip(*np.nonzero(inside), strict=True):  # one label per cell (a few dozen), not per point
         n = int(counts[j, i])
         ax.text((i + 0.5) * cw, (j + 0.5) * ch, str(n), ha="center", va="center", fontsize=8,
                 color="#b3261e" if n == 0 else ("white" if n > 0.6 * peak else "black"))
+    circle = cov.get("image_circle")
+    if circle:
+        ax.add_patch(plt.Circle((circle["cx"], circle["cy"]), circle["radius"], fill=False, color="0.3", lw=1.2))
     regions = cov.get("empty_regions") or []
-    ax.text(0.01, -0.12, "empty: " + ", ".join(regions) if regions else "no empty edge or corner",
-            transform=ax.transAxes, fontsize=8)
+    note = "empty: " + ", ".join(regions) if regions else "no empty edge or corner"
+    if circle:
+        note += "; grey: outside the lens's image circle (not counted)"
+    ax.text(0.01, -0.12, note, transform=ax.transAxes, fontsize=8)
     return _png(plt, fig)
 
 

@@ -95,11 +95,14 @@ def fitted_corners(cal: Calibration, obs: Observations) -> Observations:
 
 
 def coverage_of(obs: Observations) -> dict[str, Any]:
-    """Where the corners fall in the image (``evaluation.coverage``), with the image size."""
+    """Where the corners fall in the image (``evaluation.coverage``), with the image size;
+    inside the image circle the detection recorded, if the photos have one."""
+    from ..detection.image_circle import circle_from_json
     from ..evaluation.coverage import coverage
 
     points = np.concatenate([v.image_points for v in obs.views]) if obs.views else np.zeros((0, 2))
-    return {**coverage(points, obs.image_size), "image_size": list(obs.image_size), "n_points": int(len(points))}
+    circle = circle_from_json(obs.extra.get("image_circle"))
+    return {**coverage(points, obs.image_size, circle=circle), "image_size": list(obs.image_size), "n_points": int(len(points))}
 
 
 def corner_residuals(cal: Calibration, obs: Observations) -> list[dict[str, Any]]:

@@ -68,6 +68,7 @@ export const api = {
   methods: () => request("GET", "/api/methods"),
   sets: () => request("GET", "/api/sets"),
   set: (id) => request("GET", `/api/sets/${id}`),
+  observations: (id) => request("GET", `/api/sets/${id}/observations.json`),
   createSet: (form) => request("POST", "/api/sets", form),
   detectAgain: (id, board) => request("POST", `/api/sets/${id}/detect`, { board }),
   jobs: () => request("GET", "/api/jobs"),

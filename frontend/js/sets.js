@@ -1,8 +1,10 @@
-// The sets list, and one set's detection: progress, warnings, each image with its thumbnail and verdict.
-import { thumbUrl } from "./api.js";
+// The sets list, and one set's detection: progress, warnings, each image with its thumbnail and verdict
+// (thumbs.js), the set's corners drawn over the thumbnails once the detection has ended.
+import { api } from "./api.js";
 import { etaText, observe, remaining } from "./eta.js";
-import { el, num } from "./format.js";
-import { when } from "./names.js";
+import { el } from "./format.js";
+import { shortNames, when } from "./names.js";
+import { showCorners, thumbItem } from "./thumbs.js";
 
 export function renderSets(sets, selectedId, onSelect) {
   const ul = document.getElementById("sets");
@@ -34,14 +36,37 @@ export function renderSet(set) {
     (set.image_size ? ` · ${set.image_size[0]}×${set.image_size[1]} px` : "") + (set.error ? ` · ${set.error}` : "");
   const warn = document.getElementById("set-warnings");
   warn.hidden = !set.warnings.length;
-  warn.replaceChildren(...set.warnings.map((w) => el("span", { style: "display:block" }, w)));
-  const ul = document.getElementById("images");
-  ul.replaceChildren(...(set.images || []).map((im) => el("li", { class: im.status },
-    el("img", { src: thumbUrl(set.id, im.name), alt: `thumbnail of ${im.name}`, loading: "lazy", width: 150, height: 112 }),
-    el("div", { class: "name", title: im.name }, im.name),
-    el("div", { class: im.status }, im.status === "used" ? `✓ ${im.n_corners} corners`
-      : im.status === "rejected" ? `✗ ${im.reason || "rejected"}` : "waiting…"),
-    im.sharpness != null ? el("div", { class: "muted" }, `edge width ${num(im.sharpness, 2)} px (< 3: sharp)`) : null)));
+  // one line each (a class, not a style attribute: the page's CSP refuses those)
+  warn.replaceChildren(...set.warnings.map((w) => el("span", { class: "line" }, w)));
+  const images = set.images || [];
+  const labels = shortNames(images.map((im) => im.name), 20);
+  const cornersOf = (name) => (corners.key === cornersKey(set) && corners.byName ? corners.byName.get(name) || null : null);
+  document.getElementById("images").replaceChildren(
+    ...images.map((im) => thumbItem(set.id, im, labels.get(im.name), cornersOf)));
+  loadCorners(set);
+}
+
+// The set's corners (its observations), fetched once per detection and drawn on every thumbnail.
+let corners = { key: "", byName: null, imageSize: null };
+
+function cornersKey(set) {
+  return `${set.id} ${JSON.stringify((set.images || []).map((im) => [im.name, im.status, im.n_corners]))}`;
+}
+
+async function loadCorners(set) {
+  if (set.state !== "ready" || !set.n_views) return;   // the corners file is written when the detection ends
+  const key = cornersKey(set);
+  if (corners.key !== key) {
+    corners = { key, byName: null, imageSize: null };
+    let obs;
+    try { obs = await api.observations(set.id); } catch { return; }   // no corners file: the thumbnails stay plain
+    if (corners.key !== key) return;   // another set (or detection) was shown meanwhile
+    corners = { key, byName: new Map(obs.views.map((v) => [v.name, v.image_points])), imageSize: obs.image_size };
+  }
+  if (!corners.byName) return;
+  for (const li of document.querySelectorAll("#images li[data-name]")) {
+    showCorners(li, corners.byName.get(li.dataset.name) || null, corners.imageSize);
+  }
 }
 
 function boardText(b) {

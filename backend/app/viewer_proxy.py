@@ -132,5 +132,6 @@ async def relay(ws: WebSocket, upstream_url: str, headers: dict[str, str]) -> No
 
 def _sendable(code: int | None) -> int:
     """viser's close code if a close frame may carry it (1005/1006 only describe a lost connection)."""
-    ok = code is not None and (1000 <= code <= 1003 or 1007 <= code <= 1014 or 3000 <= code <= 4999)
-    return code if ok else 1000
+    if code is not None and (1000 <= code <= 1003 or 1007 <= code <= 1014 or 3000 <= code <= 4999):
+        return code
+    return 1000

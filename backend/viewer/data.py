@@ -43,7 +43,7 @@ class JobResult:
 
     @property
     def image_size(self) -> tuple[int, int]:
-        return tuple(self.calibration.image_size)
+        return self.calibration.image_size
 
 
 def from_calibration(job_id: str, cal: Calibration, obs: Observations | None) -> JobResult:

@@ -77,7 +77,7 @@ class Viewer:
         self.server.initial_camera.position = default.position
         self.server.initial_camera.look_at = default.look_at
         self.server.on_client_connect(self._connect)
-        self.server.on_client_disconnect(lambda client: self.sessions.pop(client.client_id, None))
+        self.server.on_client_disconnect(self._disconnect)
 
     @property
     def port(self) -> int:
@@ -104,6 +104,9 @@ class Viewer:
         return chosen
 
     # ---- one tab ---------------------------------------------------------------------
+    def _disconnect(self, client: Any) -> None:
+        self.sessions.pop(client.client_id, None)
+
     def _connect(self, client: Any) -> None:
         if not self.gate.admitted(client.client_id):
             return   # not through the proxy: no job list, no scene

@@ -19,9 +19,9 @@ router = APIRouter(prefix="/api/viewer", tags=["viewer"], route_class=BoundedJSO
 
 class ViewerPublic(BaseModel):
     enabled: bool
-    url: str | None = Field(None, description="the 3D view's page, on this server (/viewer/: needs the token "
+    url: str | None = Field(default=None, description="the 3D view's page, on this server (/viewer/: needs the token "
                                               "like /api; its websocket is /viewer?token=...)")
-    focus: str | None = Field(None, description="the job a newly opened view shows first when its URL names none "
+    focus: str | None = Field(default=None, description="the job a newly opened view shows first when its URL names none "
                                                 "(the page's views name theirs: /viewer/?job=)")
     clients: list[dict[str, Any]] = Field(default_factory=list,
                                           description="open views: job shown and scene nodes (for tests)")

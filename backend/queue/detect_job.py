@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 
 from calib_core import Observations
-from calib_core.detection.image_circle import Circle
 from calib_core.errors import DataError
+from calib_core.evaluation.coverage import Circle
 
 from ..base import storage
 from ..base.context import Context
@@ -29,7 +29,8 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     from calib_core.board import BoardSpec
     from calib_core.detection.board_size import suggest_size
     from calib_core.detection.detect import detect_images, none_found
-    from calib_core.detection.image_circle import circle_json, common_circle
+    from calib_core.detection.image_circle import common_circle
+    from calib_core.evaluation.coverage import circle_json
 
     set_id = job["set_id"]
     row = sets.get(ctx.db, set_id)

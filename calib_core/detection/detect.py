@@ -21,11 +21,11 @@ import numpy as np
 
 from ..board import BoardSpec
 from ..errors import DataError
-from ..evaluation.coverage import coverage, coverage_warning
+from ..evaluation.coverage import Circle, circle_json, coverage, coverage_warning
 from ..observations import Observations, View
 from ..target import Target
 from .detect_image import MIN_CORNERS, ImageResult, detect_file
-from .image_circle import Circle, circle_json, common_circle
+from .image_circle import common_circle
 from .targets import detect_target_file
 
 # What the command line and the service read (the service checks each one's header: backend/app/image_header.py)

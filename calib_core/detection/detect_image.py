@@ -22,10 +22,11 @@ import cv2
 import numpy as np
 
 from ..board import BoardSpec
+from ..evaluation.coverage import Circle
 from . import aprilgrid, charuco
 from .grid import expand, gap_strides, lattice_score, place_grid
 from .grow import grow_board
-from .image_circle import Circle, find_image_circle
+from .image_circle import find_image_circle
 from .markers import Markers
 from .model_guided import model_guided
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from ..evaluation.coverage import Circle
+
 BLUR_SIGMA = 2.0
 BLUR_REACH = 8      # OpenCV's kernel radius for BLUR_SIGMA: round(8 σ + 1) | 1 taps
 UNLIT = 12          # grey level (after a light blur) below which a pixel got no light
@@ -43,7 +45,6 @@ def _border_lit(gray: np.ndarray) -> bool:
 # ---- the image circle itself: where the lens's light ends, as a circle ---------------------------
 # (for the coverage advice: ``evaluation.coverage`` counts and names only cells inside it)
 
-Circle = tuple[float, float, float]  # cx, cy, radius in pixels
 
 CIRCLE_WORK_SIDE = 400   # px: the circle is found on a copy this long, a few px are enough for coverage cells
 CIRCLE_RAYS = 180        # directions from the frame's centre in which the outermost lit pixel is looked for
@@ -94,22 +95,6 @@ def common_circle(circles: list[Circle | None]) -> Circle | None:
         return None
     cx, cy, r = np.median(np.asarray(found, dtype=np.float64), axis=0)
     return float(cx), float(cy), float(r)
-
-
-def circle_json(circle: Circle | None) -> dict[str, float] | None:
-    """The circle as stored with the coverage and the observations: ``{"cx", "cy", "radius"}`` px."""
-    if circle is None:
-        return None
-    cx, cy, r = circle
-    return {"cx": round(cx, 1), "cy": round(cy, 1), "radius": round(r, 1)}
-
-
-def circle_from_json(doc: object) -> Circle | None:
-    """``circle_json``'s form read back; None for anything else (no circle recorded, or another tool's field)."""
-    try:
-        return float(doc["cx"]), float(doc["cy"]), float(doc["radius"])  # type: ignore[index]
-    except (TypeError, KeyError, ValueError):
-        return None
 
 
 def _outermost_lit(lit: np.ndarray) -> np.ndarray:

@@ -12,9 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from ..detection.image_circle import Circle, circle_json
-
 GRID_X = 8  # histogram cells across; down follows the aspect ratio
+Circle = tuple[float, float, float]  # a lens's image circle: cx, cy, radius in pixels
 INSIDE_SHARE = 0.5  # a cell counts when at least this share of it lies inside the image circle
 SAMPLES = 8  # per cell side, to measure that share
 
@@ -100,3 +99,19 @@ def coverage_warning(cov: dict[str, Any]) -> str | None:
         where = "in the " + ", ".join(regions) + " of the image"
     return (f"no corners {where}: the lens is least known there; "
             "add views with the board in those regions")
+
+
+def circle_json(circle: Circle | None) -> dict[str, float] | None:
+    """The circle as stored with the coverage and the observations: ``{"cx", "cy", "radius"}`` px."""
+    if circle is None:
+        return None
+    cx, cy, r = circle
+    return {"cx": round(cx, 1), "cy": round(cy, 1), "radius": round(r, 1)}
+
+
+def circle_from_json(doc: object) -> Circle | None:
+    """``circle_json``'s form read back; None for anything else (no circle recorded, or another tool's field)."""
+    try:
+        return float(doc["cx"]), float(doc["cy"]), float(doc["radius"])  # type: ignore[index]
+    except (TypeError, KeyError, ValueError):
+        return None

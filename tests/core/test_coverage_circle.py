@@ -8,8 +8,15 @@ import pytest
 
 from calib_core.board import BoardSpec
 from calib_core.detection.detect import detect_images
-from calib_core.detection.image_circle import circle_from_json, common_circle, find_image_circle
-from calib_core.evaluation.coverage import RIM_DIRECTIONS, RIM_SUFFIX, cells_inside, coverage, coverage_warning
+from calib_core.detection.image_circle import common_circle, find_image_circle
+from calib_core.evaluation.coverage import (
+    RIM_DIRECTIONS,
+    RIM_SUFFIX,
+    cells_inside,
+    circle_from_json,
+    coverage,
+    coverage_warning,
+)
 from calib_core.observations import Observations
 from calib_core.report.tables import coverage_of
 from tests.conftest import shared_data

@@ -11,6 +11,7 @@ import json
 import re
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -131,8 +132,15 @@ def test_gopro_camera_card_distortion_as_angles_words_and_progress(browser, serv
     page.screenshot(path=shots / "01-upload-help.png", full_page=True)
 
     watch_progress(page)
+    started = time.monotonic()
     upload(page, images, (15, 9, 26))
     doc = results(page, 240_000)
+    # upload → results → download, as a new user goes: the calibration saved by its link within a minute
+    with page.expect_download() as download:
+        page.click("#downloads a[data-file='calibration.json']")
+    saved = json.loads(open(download.value.path()).read())
+    walk = time.monotonic() - started
+    assert saved["format"] == "freecal.calibration/1" and walk < 60, f"upload to download took {walk:.0f} s"
     # the set's progress never runs backwards (its board-size check once restarted it at 0 %)
     shown = [float(m[1]) for t in page.evaluate("window.progressLines")
              if (m := re.match(r"set-progress-label: detecting · (\d+) %", t))]

@@ -7,6 +7,8 @@ the nearest unlit pixel is, so that test is one lookup per corner.
 """
 from __future__ import annotations
 
+import functools
+
 import cv2
 import numpy as np
 
@@ -99,12 +101,25 @@ def common_circle(circles: list[Circle | None]) -> Circle | None:
 
 def _outermost_lit(lit: np.ndarray) -> np.ndarray:
     """(n, 2) x, y of the lit pixel farthest from the centre in each of CIRCLE_RAYS directions that has one."""
-    yy, xx = np.nonzero(lit)
-    oy, ox = (lit.shape[0] - 1) / 2, (lit.shape[1] - 1) / 2
+    order, starts, xx, yy = _rays_of(lit.shape)
+    on = lit.ravel()[order]
+    # in each ray's run (pixels sorted by distance), the last lit one: the largest position holding light
+    last = np.maximum.reduceat(np.where(on, np.arange(len(on)), -1), starts)
+    last[np.diff(np.r_[starts, len(on)]) == 0] = -1   # a ray no pixel lies in (a frame of a few pixels)
+    last = last[last >= 0]
+    return np.column_stack([xx[last], yy[last]]).astype(np.float64)
+
+
+@functools.lru_cache(maxsize=4)
+def _rays_of(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For a frame of ``shape``: its pixels ordered by ray then distance from the centre, where
+    each ray's run starts, and the ordered pixels' x, y (the same for every photo of a set)."""
+    yy, xx = np.indices(shape).reshape(2, -1)
+    oy, ox = (shape[0] - 1) / 2, (shape[1] - 1) / 2
     ray = ((np.arctan2(yy - oy, xx - ox) + np.pi) / (2 * np.pi) * CIRCLE_RAYS).astype(np.int64) % CIRCLE_RAYS
     order = np.lexsort((np.hypot(xx - ox, yy - oy), ray))
-    last = np.r_[np.nonzero(np.diff(ray[order]))[0], len(order) - 1] if len(order) else np.zeros(0, np.int64)
-    return np.column_stack([xx[order][last], yy[order][last]]).astype(np.float64)
+    starts = np.searchsorted(ray[order], np.arange(CIRCLE_RAYS))
+    return order, starts, xx[order], yy[order]
 
 
 def _robust_circle(pts: np.ndarray, trials: int = 200) -> Circle:

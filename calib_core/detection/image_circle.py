@@ -104,7 +104,7 @@ def _outermost_lit(lit: np.ndarray) -> np.ndarray:
     order, starts, xx, yy = _rays_of(lit.shape)
     on = lit.ravel()[order]
     # in each ray's run (pixels sorted by distance), the last lit one: the largest position holding light
-    last = np.maximum.reduceat(np.where(on, np.arange(len(on)), -1), starts)
+    last = np.maximum.reduceat(np.where(on, np.arange(len(on)), -1), np.minimum(starts, len(on) - 1))
     last[np.diff(np.r_[starts, len(on)]) == 0] = -1   # a ray no pixel lies in (a frame of a few pixels)
     last = last[last >= 0]
     return np.column_stack([xx[last], yy[last]]).astype(np.float64)

@@ -61,6 +61,14 @@ def test_an_image_lit_to_its_border_has_no_circle():
     assert find_image_circle(vignetted) is None
 
 
+@pytest.mark.parametrize("shape", [(5, 7), (20, 30), (1, 1)])
+def test_frames_of_a_few_pixels_have_no_circle_and_no_error(shape):
+    assert find_image_circle(np.zeros(shape, np.uint8)) is None
+    small = np.zeros(shape, np.uint8)
+    small[shape[0] // 2, shape[1] // 2] = 255
+    find_image_circle(small)   # whatever it says, it says it without an exception
+
+
 def test_real_fisheye_photos_give_their_circle_and_gopro_photos_none():
     fisheye = sorted((shared_data("babelcalib-ov-plane-fisheye") / "train").glob("*.png"))[:3]
     circles = [find_image_circle(cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)) for p in fisheye]

@@ -63,7 +63,8 @@ def run_compare(kinds, splits, methods, holdout_every: int) -> dict:
     for kind in kinds:
         s = synth.generate(kind)
         t0 = time.perf_counter()
-        out[kind] = compare(s.train, methods, splits, thin(s.holdout, holdout_every) if holdout_every else None)
+        out[kind] = compare(s.train, methods, splits,
+                            thin(s.holdout, holdout_every) if holdout_every else None).to_json()
         out[kind]["seconds"] = time.perf_counter() - t0
         print(f"[{kind}: {out[kind]['seconds']:.0f} s]", flush=True)
     return out

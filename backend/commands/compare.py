@@ -32,9 +32,9 @@ def run(args) -> int:
     with StageProgress(args.quiet, "comparing") as progress:
         result = compare(obs, methods, args.splits, holdout, progress)
     if args.json:
-        print_json(result)
+        print_json(result.to_json())
         return 0
-    print_tables(result)
+    print_tables(result.to_json())
     return 0
 
 
@@ -43,6 +43,7 @@ def _pm(d: dict) -> str:
 
 
 def print_tables(result: dict) -> None:
+    """The comparison as tables, from the document ``--json`` prints (``Comparison.to_json``)."""
     ms = result["methods"]
     ok = [m for m in ms if "error" not in ms[m]]
     print("Fit: per-view and overall rmse [px, per point: sqrt(mean(dx²+dy²))] (paper Tables 4 and 6)")

@@ -11,6 +11,7 @@ from typing import Any
 
 from calib_core import Calibration, Observations
 from calib_core.calibration import json_safe
+from calib_core.evaluation.compare import Comparison
 from calib_core.report.tables import report_files, to_csv
 
 from ..base import storage
@@ -21,11 +22,11 @@ def write_calibration(out: Path, cal: Calibration, obs: Observations) -> list[st
     return _write(out, report_files(cal, obs))
 
 
-def write_comparison(out: Path, result: dict[str, Any], obs: Observations,
+def write_comparison(out: Path, result: Comparison, obs: Observations,
                      best: Calibration | None = None) -> list[str]:
     """A compare job: the comparison table, plus the winner's calibration files when there is one."""
     names = write_calibration(out, best, obs) if best is not None else []
-    names += _write(out, {"comparison.json": result, "comparison.csv": to_csv(comparison_rows(result))})
+    names += _write(out, {"comparison.json": result.to_json(), "comparison.csv": to_csv(comparison_rows(result))})
     return sorted(set(names))
 
 
@@ -57,14 +58,14 @@ def validation_of(cal: Calibration) -> dict[str, Any]:
     return {}
 
 
-def compare_summary(result: dict[str, Any]) -> dict[str, Any]:
-    return json_safe({"methods": list(result["methods"]), "verdict": result.get("verdict"),
-                      "verdict_detail": result.get("verdict_detail")})
+def compare_summary(result: Comparison) -> dict[str, Any]:
+    return json_safe({"methods": list(result.methods), "verdict": result.verdict,
+                      "verdict_detail": result.verdict_detail})
 
 
-def comparison_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
+def comparison_rows(result: Comparison) -> list[dict[str, Any]]:
     """``compare()``'s methods as flat rows (nested figures as ``a.b`` columns)."""
-    return [_flat({"method": name, **entry}) for name, entry in result["methods"].items()]
+    return [_flat({"method": name, **entry.to_json()}) for name, entry in result.methods.items()]
 
 
 def _write(out: Path, files: dict[str, Any]) -> list[str]:

@@ -49,9 +49,9 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
         kwargs = {k: settings[k] for k in COMPARE_SETTINGS if k in settings}
         result = compare(obs, progress=lambda s, f: run.progress(s, f, 0.0, 0.85), **kwargs)
         best = None
-        if result.get("verdict"):
+        if result.verdict:
             # compare() keeps only figures: fit the winner on every view for its files
-            best = calibrate(obs, result["verdict"], progress=lambda s, f: run.progress(s, f, 0.85, 0.97))
+            best = calibrate(obs, result.verdict, progress=lambda s, f: run.progress(s, f, 0.85, 0.97))
         run.progress("metrics", 0.0, 0.97, 1.0)
         names = artefacts.write_comparison(out, result, obs, best)
         return {"artefacts": names, "summary": artefacts.compare_summary(result)}

@@ -12,12 +12,13 @@
   the winner's validation residuals still show spatial structure (neighbouring
   corners' residuals correlated beyond what shuffling them gives).
 
-The returned object is what ``freecal compare --json`` prints (and what the
-web service serves): ``{"methods": {name: {...}}, "verdict": name, ...}``.
+It returns a ``Comparison``; its ``to_json()`` is what ``freecal compare --json``
+prints and the web service stores: ``{"methods": {name: {...}}, "verdict": name, ...}``.
 """
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -43,6 +44,61 @@ SETTINGS = ("methods", "splits")  # what a caller may set of compare(): the serv
 SIMPLEST_FIRST = ("zhang", "fisheye", "rational", "bspline", "mls", "tps")
 STRUCTURE_P_VALUE = 0.01  # below this, the residuals are called spatially structured
 N_PERMUTATIONS = 200
+
+
+@dataclass
+class MethodScores:
+    """One method's fit of the corners, and how it predicts views it has not seen."""
+
+    fit: dict[str, Any]                # rmse, rmse_axis, rmse_center, rmse_edge, n_points (px; as Calibration.metrics)
+    views: list[dict[str, Any]]        # per view: name, rmse, rmse_axis, n_points
+    n_params: int                      # the parameters the fit moved
+    quality: dict[str, Any]            # the paper's Table 7 (quality.py), or {"error": why}
+    holdout: dict[str, float] | None = None   # holdout_rmse, _axis, _center, _edge, with a hold-out set
+    cv: dict[str, Any] | None = None          # the folds over the views (None without cross-validation)
+
+    @property
+    def cv_validation_rmse(self) -> float | None:
+        return None if self.cv is None else self.cv["validation_rmse"]["mean"]
+
+    def to_json(self) -> dict[str, Any]:
+        out = {**self.fit, "views": self.views, "n_params": self.n_params, "quality": self.quality,
+               **(self.holdout or {})}
+        if self.cv is not None:
+            out.update(cv=self.cv, cv_validation_rmse=self.cv_validation_rmse)
+        return out
+
+
+@dataclass
+class MethodFailure:
+    """A method that cannot handle these corners, and why."""
+
+    error: str
+
+    def to_json(self) -> dict[str, Any]:
+        return {"error": self.error}
+
+
+@dataclass
+class Comparison:
+    """Every method on the same corners and the one to trust (``verdict``)."""
+
+    methods: dict[str, MethodScores | MethodFailure]
+    n_views: int
+    n_points: int
+    splits: int
+    quality_raw: dict[str, Any]                   # Table 7 of the raw image (or {"error": why})
+    verdict: str | None = None
+    verdict_detail: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def scored(self) -> dict[str, MethodScores]:
+        return {n: m for n, m in self.methods.items() if isinstance(m, MethodScores)}
+
+    def to_json(self) -> dict[str, Any]:
+        return {"methods": {n: m.to_json() for n, m in self.methods.items()}, "n_views": self.n_views,
+                "n_points": self.n_points, "splits": self.splits, "quality_raw": self.quality_raw,
+                "verdict": self.verdict, "verdict_detail": self.verdict_detail}
 
 
 def neighbour_correlation(residuals: np.ndarray, object_points: np.ndarray, view_index: np.ndarray,
@@ -116,12 +172,8 @@ def _cross_validate(obs: Observations, method: str, splits: int) -> tuple[dict[s
 
 
 def compare(observations: Observations, methods: list[str] | None = None, splits: int = 5,
-            holdout: Observations | None = None, progress: Progress | None = None) -> dict[str, Any]:
+            holdout: Observations | None = None, progress: Progress | None = None) -> Comparison:
     """Run ``methods`` (default: every baseline and bspline) on the same corners.
-
-    Returns ``{"methods": {name: {"rmse", "rmse_axis", "rmse_center", "rmse_edge",
-    "cv_validation_rmse", "holdout_rmse" (with ``holdout``), "views", "cv", ...}
-    or {"error": message}}, "verdict": name or None, "verdict_detail": {...}}``.
     ``splits``: folds over the views (≥ 2), or 0 to skip cross-validation
     (the verdict then uses the hold-out set, or the training rmse)."""
     methods = list(methods) if methods else [m for m in DEFAULT_METHODS if m in METHODS]
@@ -141,35 +193,36 @@ def compare(observations: Observations, methods: list[str] | None = None, splits
         raise DataError("the hold-out views come from a camera with another image_size")
     check_views(observations)  # a degenerate set fails as a whole, before any method runs
     progress = progress or no_progress
-    out: dict[str, Any] = {"methods": {}, "n_views": n_views, "n_points": observations.n_points, "splits": splits}
-    out["quality_raw"] = _quality(quality.raw_quality, observations)
-    cv_residuals = {}
+    out = Comparison({}, n_views, observations.n_points, splits, _quality(quality.raw_quality, observations))
+    cv_residuals: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     for i, name in enumerate(methods):
         part = named(scaled(progress, i / len(methods), (i + 1) / len(methods)), name)
-        entry: dict[str, Any] = {}
         try:
-            cal = calibrate(observations, name, scaled(part, 0.0, 0.5 if splits else 0.9))
-            entry.update({key: cal.metrics[key] for key in ("rmse", "rmse_axis", "rmse_center", "rmse_edge", "n_points")})
-            entry["views"] = [{"name": v.name, "rmse": v.rmse, "rmse_axis": v.rmse_axis, "n_points": v.n_points}
-                              for v in cal.views]
-            entry["n_params"] = fitted_parameter_count(cal.model)  # what the fit moved, not what the model could
-            entry["quality"] = _quality(quality.geometric_quality, cal, observations)  # paper Table 7
-            if holdout is not None:
-                r, data, _ = validation_residuals(cal, holdout)
-                s = metrics.summary(r, data.image_points, holdout.image_size)
-                entry.update({"holdout_rmse": s["rmse"], "holdout_rmse_axis": s["rmse_axis"],
-                              "holdout_rmse_center": s["rmse_center"], "holdout_rmse_edge": s["rmse_edge"]})
-            if splits:
-                part(f"cross-validation over {splits} splits", 0.5)
-                cv, cv_residuals[name] = _cross_validate(observations, name, splits)
-                entry["cv"] = cv
-                entry["cv_validation_rmse"] = cv["validation_rmse"]["mean"]
+            out.methods[name] = _scores(observations, name, splits, holdout, part, cv_residuals)
         except CalibError as exc:  # a method that cannot handle these corners says why
-            entry = {"error": str(exc)}
-        out["methods"][name] = entry
-    out["verdict"], out["verdict_detail"] = _verdict(out["methods"], cv_residuals)
+            out.methods[name] = MethodFailure(str(exc))
+    out.verdict, out.verdict_detail = _verdict(out.scored, cv_residuals)
     progress("done", 1.0)
     return out
+
+
+def _scores(observations: Observations, name: str, splits: int, holdout: Observations | None, part: Progress,
+            cv_residuals: dict) -> MethodScores:
+    cal = calibrate(observations, name, scaled(part, 0.0, 0.5 if splits else 0.9))
+    scores = MethodScores(
+        fit={key: cal.metrics[key] for key in ("rmse", "rmse_axis", "rmse_center", "rmse_edge", "n_points")},
+        views=[{"name": v.name, "rmse": v.rmse, "rmse_axis": v.rmse_axis, "n_points": v.n_points} for v in cal.views],
+        n_params=fitted_parameter_count(cal.model),  # what the fit moved, not what the model could
+        quality=_quality(quality.geometric_quality, cal, observations))  # paper Table 7
+    if holdout is not None:
+        r, data, _ = validation_residuals(cal, holdout)
+        s = metrics.summary(r, data.image_points, holdout.image_size)
+        scores.holdout = {"holdout_rmse": s["rmse"], "holdout_rmse_axis": s["rmse_axis"],
+                          "holdout_rmse_center": s["rmse_center"], "holdout_rmse_edge": s["rmse_edge"]}
+    if splits:
+        part(f"cross-validation over {splits} splits", 0.5)
+        scores.cv, cv_residuals[name] = _cross_validate(observations, name, splits)
+    return scores
 
 
 def _quality(fn: Callable[..., dict[str, Any]], *args) -> dict[str, Any]:
@@ -180,12 +233,11 @@ def _quality(fn: Callable[..., dict[str, Any]], *args) -> dict[str, Any]:
         return {"error": str(exc)}
 
 
-def _verdict(results: dict[str, dict], cv_residuals: dict) -> tuple[str | None, dict[str, Any]]:
+def _verdict(ok: dict[str, MethodScores], cv_residuals: dict) -> tuple[str | None, dict[str, Any]]:
     """The method to trust. With cross-validation, ``method="auto"``'s rule
     (``choice.choose``): the simplest method (``SIMPLEST_FIRST``) within the
     noise of the lowest validation error; otherwise the lowest hold-out or
     training error."""
-    ok = {n: r for n, r in results.items() if "error" not in r}
     if not ok:
         return None, {"reason": "every method failed on these corners"}
     order = sorted(ok, key=lambda n: SIMPLEST_FIRST.index(n) if n in SIMPLEST_FIRST else len(SIMPLEST_FIRST))
@@ -200,11 +252,12 @@ def _verdict(results: dict[str, dict], cv_residuals: dict) -> tuple[str | None, 
             counts = np.bincount(index, minlength=len(ids))
         choice = choose(candidates, counts, how="validation error per axis over the folds of the views")
         best = choice.name
-        detail = {"by": "cv_validation_rmse", "value": ok[best]["cv_validation_rmse"], "model_choice": choice.to_json()}
+        detail = {"by": "cv_validation_rmse", "value": ok[best].cv_validation_rmse, "model_choice": choice.to_json()}
     else:
-        key = next(k for k in ("holdout_rmse", "rmse") if all(k in r for r in ok.values()))
-        best = min(order, key=lambda n: ok[n][key])
-        detail = {"by": key, "value": ok[best][key]}
+        flat = {n: m.to_json() for n, m in ok.items()}
+        key = next(k for k in ("holdout_rmse", "rmse") if all(k in r for r in flat.values()))
+        best = min(order, key=lambda n: flat[n][key])
+        detail = {"by": key, "value": flat[best][key]}
     if best in cv_residuals:
         r, obj, view = cv_residuals[best]
         s: dict[str, Any] = neighbour_correlation(r, obj, view)

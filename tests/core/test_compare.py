@@ -26,25 +26,25 @@ def result(small):
 
 @pytest.mark.slow
 def test_compare_json_contract(result):
-    json.dumps(result, allow_nan=False)
-    assert set(result["methods"]) == {"zhang", "fisheye", "mls"}
-    for entry in result["methods"].values():
+    doc = json.loads(json.dumps(result.to_json(), allow_nan=False))
+    assert set(doc["methods"]) == {"zhang", "fisheye", "mls"}
+    for entry in doc["methods"].values():
         for key in ("rmse", "rmse_axis", "holdout_rmse", "cv_validation_rmse", "rmse_center", "rmse_edge"):
             assert np.isfinite(entry[key])
         assert len(entry["cv"]["splits"]) == 3
         validated = sorted(n for s in entry["cv"]["splits"] for n in s["validated"])
         assert len(validated) == 6 and len(set(validated)) == 6  # each view validated once
-    assert result["verdict"] in result["methods"]
+    assert doc["verdict"] in doc["methods"] and doc["verdict"] == result.verdict
 
 
 @pytest.mark.slow
 def test_parametric_model_wins_on_its_own_lens(result):
     # The radial lens is OpenCV's model: zhang fits it to the noise, KB cannot.
-    ms = result["methods"]
-    assert ms["zhang"]["cv_validation_rmse"] < ms["fisheye"]["cv_validation_rmse"]
-    assert ms["zhang"]["rmse"] < 0.3 * np.sqrt(2) * 1.1
-    assert result["verdict"] in ("zhang", "mls")
-    assert not result["verdict_detail"]["spatial_structure"]["structured"]
+    ms = result.scored
+    assert ms["zhang"].cv_validation_rmse < ms["fisheye"].cv_validation_rmse
+    assert ms["zhang"].fit["rmse"] < 0.3 * np.sqrt(2) * 1.1
+    assert result.verdict in ("zhang", "mls")
+    assert not result.verdict_detail["spatial_structure"]["structured"]
 
 
 def test_neighbour_correlation_detects_a_smooth_error():
@@ -84,9 +84,9 @@ def test_on_opencvs_own_lens_the_default_and_the_verdict_both_name_zhang(small):
     rule, names zhang over TPS (which adds a smoothed field to it) and over
     the paper's field, whatever order the methods were asked in."""
     result = compare(small.train, ["bspline", "auto", "tps", "zhang"], splits=3)
-    cv = {m: r["cv_validation_rmse"] for m, r in result["methods"].items()}
+    cv = {m: r.cv_validation_rmse for m, r in result.scored.items()}
     assert cv["zhang"] < cv["tps"] and cv["zhang"] < cv["bspline"]
-    assert result["verdict"] == "zhang"
+    assert result.verdict == "zhang"
     assert calibrate(small.train).settings["chosen"] == "zhang"
-    choice = result["verdict_detail"]["model_choice"]
+    choice = result.verdict_detail["model_choice"]
     assert choice["chosen"] == "zhang" and "one-standard-error rule" in choice["rule"]

@@ -70,8 +70,10 @@ async def read_projection_diff(ctx: ContextDep, job_id: str, other_id: str,
     dirs = []
     for ident in (job_id, other_id):
         job = service.get(ctx, ident)
-        if job["state"] != "done" or "calibration.json" not in job["artefacts"]:
+        if job["state"] != "done":
             raise ApiError(409, f"job {ident} is {job['state']}: it can be compared once its calibration is done")
+        if "calibration.json" not in job["artefacts"]:
+            raise ApiError(409, f"job {ident} has no calibration to compare (no method could fit its corners)")
         dirs.append((str(ctx.storage.job_dir(ident)), job["finished_at"]))
     return await run_in_threadpool(_diff, *dirs[0], *dirs[1], grid, fit_region)
 

@@ -96,7 +96,8 @@ def test_unwritable_data_directory_is_degraded_and_reads_still_answer(app, monke
 def test_supervisor_starts_a_dead_worker_again_and_pauses_for_one_that_keeps_dying(monkeypatch):
     monkeypatch.setattr(supervisor, "CHECK_SECONDS", 0.05)
     monkeypatch.setattr(supervisor, "FIRST_PAUSE_SECONDS", 0.2)
-    sup = Supervisor([sys.executable, "-c", "raise SystemExit(3)"], {}, 1).start()
+    sup = Supervisor([sys.executable, "-c", "raise SystemExit(3)"], {}, 1)
+    sup.start()
     try:
         deadline = time.monotonic() + 30
         while sup.slots[0].restarts < 3 and time.monotonic() < deadline:
@@ -109,7 +110,8 @@ def test_supervisor_starts_a_dead_worker_again_and_pauses_for_one_that_keeps_dyi
 
 
 def test_supervisor_stops_its_workers(monkeypatch):
-    sup = Supervisor([sys.executable, "-c", "import time; time.sleep(600)"], {}, 2).start()
+    sup = Supervisor([sys.executable, "-c", "import time; time.sleep(600)"], {}, 2)
+    sup.start()
     procs = [s.proc for s in sup.slots]
     assert len(sup.pids()) == 2
     sup.stop()

@@ -9,7 +9,7 @@ from backend.cli import main as cli
 from tests.conftest import shared_data
 
 
-@pytest.mark.slow  # renders and detects a set: seconds
+@pytest.mark.slow  # detects real photos, then calibrates: seconds
 def test_calibrate_from_images_detects_then_calibrates(tmp_path, capsys):
     root = shared_data("opencv-stereo-9x6")
     left = sorted(str(p) for p in root.glob("left*.jpg"))
@@ -32,7 +32,7 @@ def test_calibrate_from_images_needs_a_board(tmp_path, capsys):
     assert "COLSxROWS:SQUARE" in capsys.readouterr().err
 
 
-@pytest.mark.slow  # renders and detects a set: seconds
+@pytest.mark.slow  # detects real photos, then calibrates: seconds
 def test_detect_refine_with_a_calibration_says_what_it_added(tmp_path, capsys):
     """freecal detect --refine-with CAL.json: corners predicted through a first calibration."""
     root = shared_data("opencv-stereo-9x6")

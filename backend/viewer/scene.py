@@ -98,7 +98,7 @@ def set_component(built: Built, component: str) -> None:
 def _add_camera(scene: Any, handles: dict[str, Any], result: JobResult, depth: float) -> None:
     """The camera at the origin: its frame with labelled axes, and its frustum reaching the image plane."""
     w, h = result.image_size
-    fy = result.calibration.to_json()["intrinsics"]["fy"]
+    fy = result.calibration.model.intrinsics_json()["fy"]
     handles["/cameras/0"] = scene.add_frame("/cameras/0", show_axes=True, axes_length=AXIS_LENGTH,
                                             axes_radius=AXIS_LENGTH * 0.03)
     handles["/cameras/0/frustum"] = scene.add_camera_frustum(
@@ -117,7 +117,7 @@ def _add_image_plane(scene: Any, built: Built, result: JobResult, depth: float, 
     """The ideal image plane at ``depth``: outline, knot grid (a field only), residual vectors; its corners (4, 3)."""
     cal = result.calibration
     w, h = result.image_size
-    k = cal.to_json()["intrinsics"]
+    k = cal.model.intrinsics_json()
     handles = built.handles
 
     def on_plane(uv: np.ndarray) -> np.ndarray:

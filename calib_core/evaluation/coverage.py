@@ -37,12 +37,11 @@ def coverage(points: np.ndarray, image_size: tuple[int, int], grid_x: int = GRID
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     counts, _, _ = np.histogram2d(pts[:, 1], pts[:, 0], bins=[gy, gx], range=[[-0.5, h - 0.5], [-0.5, w - 0.5]])
     counts = counts.astype(np.int64)
+    out = {"grid": [gx, gy], "counts": counts.tolist()}
     if circle is None:
-        return {"grid": [gx, gy], "counts": counts.tolist(), "fraction_covered": float(np.mean(counts > 0)),
-                "empty_regions": empty_regions(counts)}
+        return {**out, "fraction_covered": float(np.mean(counts > 0)), "empty_regions": empty_regions(counts)}
     inside = cells_inside(circle, (gx, gy), image_size)
-    return {"grid": [gx, gy], "counts": counts.tolist(),
-            "fraction_covered": float(np.mean(counts[inside] > 0)) if inside.any() else 0.0,
+    return {**out, "fraction_covered": float(np.mean(counts[inside] > 0)) if inside.any() else 0.0,
             "empty_regions": empty_rim(counts, inside, circle, image_size),
             "image_circle": circle_json(circle), "inside": inside.tolist()}
 

@@ -25,19 +25,21 @@ class View:
     object_points: (N, 3) float64 board-frame coordinates, in board units.
     image_points:  (N, 2) float64 observed pixels.
     ids:           (N,) int64 board corner ids, or None (matched by position).
+    frame:         the moment the image was taken, for rigs (formats.md §4), or None.
     """
 
     name: str
     object_points: np.ndarray
     image_points: np.ndarray
     ids: np.ndarray | None = None
+    frame: str | None = None
 
     def __len__(self) -> int:
         return len(self.image_points)
 
     def subset(self, mask: np.ndarray) -> View:
         ids = None if self.ids is None else self.ids[mask]
-        return View(self.name, self.object_points[mask], self.image_points[mask], ids)
+        return View(self.name, self.object_points[mask], self.image_points[mask], ids, self.frame)
 
 
 @dataclass
@@ -74,6 +76,8 @@ class Observations:
             }
             if v.ids is not None:
                 d["ids"] = v.ids.tolist()
+            if v.frame is not None:
+                d["frame"] = v.frame
             views.append(d)
         out: dict[str, Any] = {"format": FORMAT, "image_size": list(self.image_size)}
         if self.board is not None:
@@ -229,4 +233,7 @@ def _view(k: int, rv: Any) -> View:
         if len(set(ids)) != len(ids):
             raise FormatError(f"{where}.ids: a corner id appears twice")
         ids = np.asarray(ids, dtype=np.int64)
-    return View(name, obj, img, ids)
+    frame = rv.get("frame")
+    if frame is not None and (not isinstance(frame, str) or not frame):
+        raise FormatError(f"{where}.frame: expected a non-empty string naming the moment the image was taken")
+    return View(name, obj, img, ids, frame)

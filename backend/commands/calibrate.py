@@ -101,7 +101,13 @@ def settings_of(args) -> dict:
                             + ("chooses the model, knot grid and smoothing itself)" if args.method == "auto" else
                                "takes its settings with --set KEY=VALUE)"))
     settings = {key: getattr(args, key) for _, key, _, _ in BSPLINE_FLAGS if getattr(args, key) is not None}
-    for item in args.set:
+    return {**settings, **set_settings(args.set)}
+
+
+def set_settings(items: list[str]) -> dict:
+    """The method settings given as ``--set KEY=VALUE``."""
+    settings = {}
+    for item in items:
         key, sep, value = item.partition("=")
         if not sep:
             raise SettingsError(f"--set {item!r}: expected KEY=VALUE")

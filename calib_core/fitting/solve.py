@@ -145,10 +145,10 @@ def _assemble(model: CameraModel, poses: np.ndarray, data: Data, settings: Solve
     n_model = 0
     blocks_c, blocks_v = [], []
     if not settings.fix_model:
-        column = _model_columns(model.n_params, settings.free_params)
+        column = model_columns(model.n_params, settings.free_params)
         n_model = int(column.max()) + 1 if len(column) else 0
         cols = column[cols]
-        cols, vals = _drop_held(cols, vals)
+        cols, vals = drop_held(cols, vals)
         blocks_c.append(cols)
         blocks_v.append(vals)
     if not settings.fix_poses:
@@ -174,7 +174,7 @@ def _assemble(model: CameraModel, poses: np.ndarray, data: Data, settings: Solve
     return r, jac
 
 
-def _drop_held(cols: np.ndarray, vals: np.ndarray):
+def drop_held(cols: np.ndarray, vals: np.ndarray):
     """Remove the entries of held parameters (column −1) from (N, 2, w)
     Jacobian rows: every entry costs in JᵀJ, and a hybrid model holds 16 of
     its 36 (its core's coefficients). When rows hold different numbers, the
@@ -189,7 +189,7 @@ def _drop_held(cols: np.ndarray, vals: np.ndarray):
     return np.where(held, 0, cols), np.where(held, 0.0, vals)
 
 
-def _model_columns(n_params: int, free_params: np.ndarray | None) -> np.ndarray:
+def model_columns(n_params: int, free_params: np.ndarray | None) -> np.ndarray:
     """(n_params,) int: each model parameter's Jacobian column, −1 if held."""
     if free_params is None:
         return np.arange(n_params)

@@ -1,0 +1,33 @@
+"""Which moment (frame) each view was taken at: formats.md §4."""
+from __future__ import annotations
+
+import re
+
+from ..errors import DataError
+from ..observations import View
+
+_DIGITS = re.compile(r"\d+")
+
+
+def frame_of(view: View) -> str:
+    """The view's ``frame``, or else the last run of digits in its name
+    (``left07.jpg`` → ``07``)."""
+    if view.frame is not None:
+        return view.frame
+    runs = _DIGITS.findall(view.name)
+    if not runs:
+        raise DataError(f"view {view.name!r} names no frame: give it a \"frame\" in the observations, or number the "
+                        "images (left07.jpg and right07.jpg are frame 07)")
+    return runs[-1]
+
+
+def frames_of(camera: str, views: list[View]) -> list[str]:
+    """Each view's frame; a DataError if one camera has two views of one frame."""
+    frames = [frame_of(v) for v in views]
+    seen: dict[str, str] = {}
+    for v, f in zip(views, frames, strict=True):
+        if f in seen:
+            raise DataError(f"camera {camera!r}: views {seen[f]!r} and {v.name!r} are both frame {f!r}; "
+                            "a camera sees each frame once (set \"frame\" in the observations to tell them apart)")
+        seen[f] = v.name
+    return frames

@@ -1,0 +1,184 @@
+"""Rigs (formats.md §4): cameras' poses relative to the reference recovered
+from simulated rigs, the same answer as OpenCV's stereoCalibrate on a real
+stereo pair, freecal.rig/1 read back and self-consistent, and bad rigs refused
+saying why."""
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from backend.cli import main
+from calib_core.board import BoardSpec
+from calib_core.detection.detect import detect_images
+from calib_core.errors import DataError, FormatError
+from calib_core.models import camera
+from calib_core.models.opencv import OpenCVModel
+from calib_core.observations import Observations, View
+from calib_core.rig import Rig, calibrate_rig, frame_of
+
+from ..conftest import shared_data
+
+BOARD = np.array([[x * 60.0, y * 60.0, 0.0] for y in range(7) for x in range(10)])
+SIZE = (1280, 960)
+TRUE_MODELS = [OpenCVModel([900, 902, 640, 480, 0], [-0.12, 0.05, 0.001, -0.0005, 0.0]),
+               OpenCVModel([880, 881, 650, 470, 0], [-0.10, 0.03, -0.001, 0.0008, 0.0]),
+               OpenCVModel([920, 918, 630, 490, 0], [-0.15, 0.07, 0.0, 0.0, 0.0])]
+# camera i's pose relative to the reference: Pc_i = R · Pc_ref + t (mm)
+TRUE_EXTRINSICS = np.array([[0, 0, 0, 0, 0, 0],
+                            [0.01, 0.06, 0.02, -150.0, 2.0, 5.0],
+                            [-0.02, 0.12, 0.01, -300.0, -4.0, 20.0]])
+
+
+def frame_poses(n: int, rng) -> np.ndarray:
+    """Board poses in the reference camera's frame that every camera sees whole."""
+    poses = []
+    for _ in range(n):
+        rot = Rotation.from_euler("xyz", rng.uniform(-0.5, 0.5, 3)).as_rotvec()
+        t = np.array([150.0 - 270.0 + rng.uniform(-150, 150), -180.0 + rng.uniform(-120, 120), rng.uniform(1100, 1500)])
+        poses.append(np.concatenate([rot, t]))
+    return np.array(poses)
+
+
+def simulated_rig(frames_seen: list[range], sigma: float = 0.2, seed: int = 0) -> dict[str, Observations]:
+    rng = np.random.default_rng(seed)
+    poses = frame_poses(max(max(r) for r in frames_seen) + 1, rng)
+    cameras = {}
+    for c, seen in enumerate(frames_seen):
+        views = []
+        for f in seen:
+            p_ref = camera.rotate(poses[f, :3], BOARD) + poses[f, 3:]
+            pc = camera.rotate(TRUE_EXTRINSICS[c, :3], p_ref) + TRUE_EXTRINSICS[c, 3:]
+            uv = TRUE_MODELS[c].project(pc) + rng.normal(0, sigma, (len(BOARD), 2))
+            inside = np.all((uv > 0) & (uv < np.array(SIZE) - 1), axis=1)
+            assert inside.all(), "the simulated rig must see every board whole"
+            views.append(View(f"cam{c}_{f:03d}.png", BOARD.copy(), uv, np.arange(len(BOARD))))
+        cameras[f"cam{c}"] = Observations(SIZE, views)
+    return cameras
+
+
+def rotation_error(a: np.ndarray, b: np.ndarray) -> float:
+    return float((Rotation.from_rotvec(a) * Rotation.from_rotvec(b).inv()).magnitude())
+
+
+def test_a_three_camera_rig_is_recovered_through_a_chain_of_shared_frames():
+    # cam2 never sees a frame the reference sees: it is placed through cam1
+    rig = calibrate_rig(simulated_rig([range(0, 12), range(0, 24), range(12, 24)]), "zhang")
+    assert rig.reference == "cam0" and [c.name for c in rig.cameras] == ["cam0", "cam1", "cam2"]
+    assert rig.diagnostics["cameras"]["cam2"]["frames_shared_with_reference"] == 0
+    for c, cam in enumerate(rig.cameras):
+        assert rotation_error(cam.rvec, TRUE_EXTRINSICS[c, :3]) < 6e-3  # radians: what a few px of principal point allow
+        assert np.linalg.norm(cam.tvec - TRUE_EXTRINSICS[c, 3:]) < 3.0  # mm, of a 150-300 mm baseline
+    assert rig.metrics["rmse_axis"] == pytest.approx(0.2, rel=0.15)  # the corners' noise
+    assert [f.frame for f in rig.frames] == [f"{k:03d}" for k in range(24)]
+    assert "warnings" not in rig.diagnostics
+
+
+def test_rig_file_reads_back_and_each_calibration_stands_alone(tmp_path):
+    cameras = simulated_rig([range(0, 10), range(0, 10)], seed=1)
+    rig = calibrate_rig(cameras, "zhang", reference="cam1")
+    assert rig.reference == "cam1" and np.all(rig.camera("cam1").pose == 0)
+    path = tmp_path / "rig.json"
+    rig.save(path)
+    doc = json.loads(path.read_text())
+    assert doc["format"] == "freecal.rig/1" and doc["reference"] == "cam1"
+    assert set(doc["metrics"]) >= {"rmse", "rmse_axis", "n_points"}
+    back = Rig.load(path)
+    assert back.to_json() == rig.to_json()
+    # a reader of the camera's calibration alone (section 2) projects each view as the rig does
+    for cam in back.cameras:
+        for view in cam.calibration.views:
+            frame = next(f for f in back.frames if f.frame == frame_of(View(view.name, BOARD, BOARD[:, :2])))
+            alone = cam.calibration.project(BOARD, view.rvec, view.tvec)
+            assert np.allclose(alone, back.project(cam.name, BOARD, frame.rvec, frame.tvec), atol=1e-9)
+
+
+def test_stereo_pair_agrees_with_opencv_stereo_calibrate():
+    folder = shared_data("opencv-stereo-9x6")
+    board = BoardSpec.parse("chessboard:9x6:1")
+    cameras = {side: detect_images(sorted(folder.glob(f"{side}*.jpg")), board).observations
+               for side in ("left", "right")}
+    rig = calibrate_rig(cameras, "zhang", outlier_sigma=0, refine_models=False)
+    left, right = rig.camera("left").calibration, rig.camera("right").calibration
+    obj, img_l, img_r = [], [], []
+    by_frame = {side: {frame_of(v): v for v in cameras[side].views} for side in cameras}
+    for frame in sorted(set(by_frame["left"]) & set(by_frame["right"])):
+        a, b = by_frame["left"][frame], by_frame["right"][frame]
+        ids = np.intersect1d(a.ids, b.ids)
+        obj.append(a.object_points[np.searchsorted(a.ids, ids)].astype(np.float32))
+        img_l.append(a.image_points[np.searchsorted(a.ids, ids)].astype(np.float32))
+        img_r.append(b.image_points[np.searchsorted(b.ids, ids)].astype(np.float32))
+
+    def k(cal):
+        fx, fy, cx, cy, s = cal.model.intrinsics
+        return np.array([[fx, s, cx], [0, fy, cy], [0, 0, 1.0]])
+
+    rms, *_, r, t, _, _ = cv2.stereoCalibrate(obj, img_l, img_r, k(left), left.model.coefficients, k(right),
+                                              right.model.coefficients, (640, 480), flags=cv2.CALIB_FIX_INTRINSIC)
+    cam = rig.camera("right")
+    assert rotation_error(cam.rvec, cv2.Rodrigues(r)[0].ravel()) < 1e-5
+    assert np.allclose(cam.tvec, t.ravel(), atol=1e-4)  # squares of 1 unit; baseline 3.3
+    assert rig.metrics["rmse"] == pytest.approx(rms, rel=1e-4)
+    joint = calibrate_rig(cameras, "zhang", outlier_sigma=0)  # the models refined with the rig
+    assert joint.metrics["rmse"] < rig.metrics["rmse"]
+    assert joint.diagnostics["solver"]["models_refined"] and not rig.diagnostics["solver"]["models_refined"]
+
+
+def test_frames_come_from_the_view_field_before_the_name():
+    assert frame_of(View("left07.jpg", BOARD, BOARD[:, :2])) == "07"
+    assert frame_of(View("img_3_left.png", BOARD, BOARD[:, :2], frame="t=0.25")) == "t=0.25"
+    with pytest.raises(DataError, match="names no frame"):
+        frame_of(View("left.jpg", BOARD, BOARD[:, :2]))
+    doc = simulated_rig([range(0, 3)])["cam0"].to_json()
+    doc["views"][0]["frame"] = "first"
+    assert Observations.from_json(doc).views[0].frame == "first"
+    assert Observations.from_json(json.loads(json.dumps(Observations.from_json(doc).to_json()))).views[0].frame == "first"
+    doc["views"][0]["frame"] = 7
+    with pytest.raises(FormatError, match="frame"):
+        Observations.from_json(doc)
+
+
+def test_bad_rigs_are_refused_saying_why():
+    cameras = simulated_rig([range(0, 6), range(6, 12)])
+    with pytest.raises(DataError, match=r"\['cam1'\] share no frame"):
+        calibrate_rig(cameras, "zhang")
+    twice = simulated_rig([range(0, 6), range(0, 6)])
+    twice["cam1"].views[1].frame = "000"
+    with pytest.raises(DataError, match="are both frame '000'"):
+        calibrate_rig(twice, "zhang")
+    with pytest.raises(DataError, match="at least two cameras"):
+        calibrate_rig({"cam0": cameras["cam0"]})
+    with pytest.raises(DataError, match="reference camera 'nope'"):
+        calibrate_rig(cameras, reference="nope")
+
+
+def test_unsynchronised_frames_are_named_in_a_warning():
+    cameras = simulated_rig([range(0, 12), range(0, 12)], seed=2)
+    names = [f"cam1_{(k + 1) % 12:03d}.png" for k in range(12)]  # every right view labelled with the next frame
+    for view, name in zip(cameras["cam1"].views, names, strict=True):
+        view.name = name
+    rig = calibrate_rig(cameras, "zhang")
+    assert any("'cam1'" in w and "simultaneous" in w for w in rig.diagnostics["warnings"])
+
+
+def test_cli_writes_the_rig_and_refuses_bad_flags(tmp_path, capsys):
+    cameras = simulated_rig([range(0, 8), range(0, 8)], seed=3)
+    paths = []
+    for name, obs in cameras.items():
+        obs.save(tmp_path / f"{name}.json")
+        paths.append(str(tmp_path / f"{name}.json"))
+    out = tmp_path / "rig.json"
+    assert main(["rig", *paths, "--method", "zhang", "--names", "left,right", "-o", str(out), "-q"]) == 0
+    printed = capsys.readouterr().out
+    assert "rmse in rig" in printed and "wrote" in printed
+    rig = Rig.load(out)
+    assert [c.name for c in rig.cameras] == ["left", "right"]
+    assert main(["rig", *paths, "--names", "left", "-q"]) == 2
+    assert "expected 2 distinct names" in capsys.readouterr().err
+    assert main(["rig", paths[0], "-q"]) == 2
+    assert "two or more cameras" in capsys.readouterr().err
+    assert main(["rig", *paths, "--reference", "middle", "-q"]) == 2
+    assert "not one of the cameras" in capsys.readouterr().err

@@ -40,4 +40,4 @@ def test_a_fit_stopped_at_a_wrong_focal_length_is_caught_and_restarted():
 def test_a_good_fit_is_not_restarted():
     for kind in ("radial", "asymmetric"):
         cal = calibrate(synthetic(kind).train, "bspline")
-        assert "restart" not in cal.diagnostics
+        assert cal.diagnostics.restart is None

@@ -2,8 +2,9 @@
 (``metrics``) and the ``diagnostics`` other code reads (the solver's report,
 the points left out, the corners' hull, method auto's choice, a restart).
 
-Each is a small dataclass with ``to_json()``, the object of formats.md §2, and
-``from_json()``, which names the field of a malformed one in a FormatError.
+Each is a small dataclass with ``to_json()``, its object in the calibration file
+(``metrics``: formats.md §2; ``diagnostics`` go beyond the contract: docs/python.md),
+and ``from_json()``, which names the field of a malformed one in a FormatError.
 ``Calibration`` (``calibration.py``) holds them and reads and writes them.
 """
 from __future__ import annotations

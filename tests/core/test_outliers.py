@@ -43,5 +43,5 @@ def test_the_refit_without_them_starts_at_the_minimum():
     along the field's flat valley (13 iterations against 3 on BabelCalib)."""
     cal = calibrate(sets("asymmetric")[1].train, "bspline", core="none")
     solver = cal.diagnostics.solver
-    assert solver["status"] == "converged"
-    assert solver["iterations"] <= 5
+    assert solver.status == "converged"
+    assert solver.iterations <= 5

@@ -35,11 +35,11 @@ def run(kind: str, sigma: float, seed: int, **settings):
     cal = calibrate(s.train, "bspline", **settings)
     seconds = time.perf_counter() - t0
     m = cal.metrics
-    p = cal.diagnostics["solver"]["n_unknowns"]
-    floor = noise_floor(sigma, p, m["n_points"])
+    p = cal.diagnostics.solver.n_unknowns
+    floor = noise_floor(sigma, p, m.n_points)
     hold = evaluate(cal, s.holdout)
-    return {"cal": cal, "seconds": seconds, "floor": floor, "ratio": m["rmse_axis"] / floor, "holdout": hold["rmse"],
-            "rmse": m["rmse"], "rmse_axis": m["rmse_axis"], "n": m["n_points"], "p": p}
+    return {"cal": cal, "seconds": seconds, "floor": floor, "ratio": m.rmse_axis / floor, "holdout": hold["rmse"],
+            "rmse": m.rmse, "rmse_axis": m.rmse_axis, "n": m.n_points, "p": p}
 
 
 def grid_of(cal, with_factor: bool = False) -> str:
@@ -85,7 +85,7 @@ def noise(seeds: int) -> None:
 
 
 def _design_row(label, r):
-    d = r["cal"].diagnostics["design"]
+    d = r["cal"].diagnostics.extra["design"]
     return (label, f"{d['intervals'][0]}x{d['intervals'][1]}", f"{d['rank']}/{d['n_controls']}",
             d["condition_x"], d["condition_y"], d["zero_columns"], d["empty_intervals_u"] + d["empty_intervals_v"],
             r["rmse"], r["ratio"], r["holdout"])
@@ -197,7 +197,7 @@ def speed(seeds: int) -> None:
             cal = calibrate(s.train, "bspline", **settings)
             wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
             rows.append((views, s.train.n_points, label, wall, cpu, 1e6 * cpu / s.train.n_points,
-                         cal.diagnostics["solver"]["iterations"]))
+                         cal.diagnostics.solver.iterations))
     print_table(["views", "points", "configuration", "wall [s]", "CPU [s]", "CPU us per point", "final LM iterations"],
                 rows)
 

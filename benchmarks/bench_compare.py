@@ -77,7 +77,7 @@ def noise_sweep(kinds, sigmas, methods) -> dict:
             s = synth.generate(kind, sigma=sigma)
             for m in methods:
                 try:
-                    out[kind, sigma, m] = calibrate(s.train, m).metrics["rmse"]
+                    out[kind, sigma, m] = calibrate(s.train, m).metrics.rmse
                 except CalibError:
                     out[kind, sigma, m] = float("nan")
     return out
@@ -194,9 +194,9 @@ def freecal_bspline(train, test, **settings) -> dict:
     seconds = time.process_time() - t0
     r, _, _ = validation_residuals(cal, test)  # pose-only refit, as mrcal_fit.holdout does
     st = cal.settings
-    return {"seconds": seconds, "train_rmse": cal.metrics["rmse"], "train_rmse_axis": cal.metrics["rmse_axis"],
+    return {"seconds": seconds, "train_rmse": cal.metrics.rmse, "train_rmse_axis": cal.metrics.rmse_axis,
             "test_rmse": metrics.rmse(r), "test_rmse_axis": metrics.rmse_axis(r),
-            "outliers": cal.diagnostics["excluded_points"]["outliers"], "core_used": st.get("core_used"),
+            "outliers": cal.diagnostics.excluded_points.outliers, "core_used": st.get("core_used"),
             "model": f"{st.get('base', 'pinhole')} base, " + (f"{st.get('core_used')} alone" if st.get("field_held") else
                      f"core {st.get('core_used')}, {'x'.join(map(str, st.get('intervals_used', [])))} intervals")}
 

@@ -111,9 +111,9 @@ def job(kind: str, seed: int, views: int, sigma: float, method: str, settings: d
         return {"failed": f"{type(exc).__name__}: {exc}"}
     except Exception as exc:  # a bug, not a verdict on the configuration: listed under the table
         return {"failed": f"{type(exc).__name__}: {exc}", "crash": True}
-    floor = noise_floor(sigma, cal.diagnostics["solver"]["n_unknowns"], cal.metrics["n_points"])
+    floor = noise_floor(sigma, cal.diagnostics.solver.n_unknowns, cal.metrics.n_points)
     return {"holdout": holdout, "cpu": cpu, "chosen": cal.settings.get("chosen"),
-            "floor_ratio": cal.metrics["rmse_axis"] / floor}
+            "floor_ratio": cal.metrics.rmse_axis / floor}
 
 
 def one_thread() -> None:
@@ -201,7 +201,7 @@ def babelcalib_section(a) -> None:
     markdown(["train views / corners", "test views / corners", "chosen", "train rmse", "test rmse",
               f"target ≤ {TARGET_BABELCALIB}", "CPU s"],
              [[f"{len(train.views)} / {train.n_points}", f"{len(test.views)} / {test.n_points}", cal.settings["chosen"],
-               cal.metrics["rmse"], e["rmse"], verdict(e["rmse"] <= TARGET_BABELCALIB), f"{cpu:.2f}"]])
+               cal.metrics.rmse, e["rmse"], verdict(e["rmse"] <= TARGET_BABELCALIB), f"{cpu:.2f}"]])
 
 
 # -- speed --------------------------------------------------------------------------
@@ -255,7 +255,7 @@ def scaling(a) -> None:
             cal, cpu = timed(s.train, method, **settings)
             times[label][views] = (s.train.n_points, cpu)
             rows.append([views, s.train.n_points, label, cal.settings.get("chosen", "—"),
-                         cal.diagnostics["solver"]["iterations"], f"{cpu:.2f}", f"{1000 * cpu / s.train.n_points:.3f}"])
+                         cal.diagnostics.solver.iterations, f"{cpu:.2f}", f"{1000 * cpu / s.train.n_points:.3f}"])
     markdown(["views", "corners", "configuration", "chosen", "final solver iterations", "CPU s",
               "CPU s per 1000 corners"], rows)
     n, t = np.array(list(times["fixed 10x10, λ = 1"].values())).T

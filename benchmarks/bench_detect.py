@@ -184,7 +184,7 @@ def _rendered(kind: str, args, speed: list, accuracy: list, same_id: list, refin
             t_again = time.perf_counter() - t0
             same_id.append(_row_same_id(f"{label} re-detected through a calibration", again.observations,
                                         visible, board.cols, visible.n_points))
-            refined.append((label, f"{cal.metrics.get('rmse', float('nan')):.3f}", det.observations.n_points,
+            refined.append((label, f"{cal.metrics.rmse:.3f}", det.observations.n_points,
                             again.observations.n_points if again.observations else 0, again.model_added,
                             f"{t_again:.1f}"))
         print(f"rendered {len(images)} images of {synth.IMAGE_SIZE[0]}x{synth.IMAGE_SIZE[1]} in {t_render:.1f} s "

@@ -39,7 +39,7 @@ def methods(kinds, names, views: int) -> None:
                 print(f"{kind:10s} {name:9s} refused: {exc}")
                 continue
             held = evaluate(cal, s.holdout)["rmse"]
-            print(f"{kind:10s} {name:9s} {cal.settings.get('chosen', '-'):16s} train {cal.metrics['rmse']:.9f} "
+            print(f"{kind:10s} {name:9s} {cal.settings.get('chosen', '-'):16s} train {cal.metrics.rmse:.9f} "
                   f"hold-out {held:.9f} intrinsics {' '.join(f'{v:.6f}' for v in cal.model.intrinsics)}")
 
 

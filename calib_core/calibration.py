@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from .errors import FormatError
+from .fit_report import Diagnostics, FitMetrics
 from .models import MODEL_TYPES, CameraModel, camera, unproject
 from .observations import read_json, write_json
 
@@ -43,9 +44,14 @@ class Calibration:
     method: str
     views: list[ViewResult] = field(default_factory=list)
     dropped_views: list[dict[str, str]] = field(default_factory=list)
-    metrics: dict[str, Any] = field(default_factory=dict)
+    metrics: FitMetrics | None = None  # None: a model with no fit of its own (a lean export, a lens's truth)
+    # The method's settings as the fit used them: the method's settings dataclass, the
+    # pipeline's (``method``, ``outlier_sigma``), what the fit chose (``intervals_used``,
+    # ``chosen``, …) and the model's ``settings_json`` (what ``CameraModel.restored``
+    # reads back), merged flat in one object. Kept a dict: its keys depend on the
+    # method, and a type per method would change the format's flat object.
     settings: dict[str, Any] = field(default_factory=dict)
-    diagnostics: dict[str, Any] = field(default_factory=dict)
+    diagnostics: Diagnostics = field(default_factory=Diagnostics)
     # where it came from (``provenance.py``): version, date, observations' hash, tvec units
     provenance: dict[str, Any] = field(default_factory=dict)
 
@@ -108,9 +114,9 @@ class Calibration:
                 for v in self.views
             ],
             "dropped_views": list(self.dropped_views),
-            "metrics": json_safe(self.metrics),
+            "metrics": {} if self.metrics is None else self.metrics.to_json(),
             "settings": json_safe(self.settings),
-            "diagnostics": json_safe(self.diagnostics),
+            "diagnostics": json_safe(self.diagnostics.to_json()),
         }
         if self.provenance:
             doc["provenance"] = json_safe(self.provenance)
@@ -163,9 +169,10 @@ class Calibration:
             except (KeyError, TypeError, ValueError, OverflowError, AttributeError):
                 raise FormatError(f"views[{k}]: expected name, rvec [3 numbers] and tvec [3 numbers]") from None
         provenance = doc.get("provenance")  # an extra field: kept when it is ours, ignored otherwise
+        metrics = doc.get("metrics", {})
         return cls(model, (image_size[0], image_size[1]), str(doc.get("model", dist["type"])), views,
-                   list(doc.get("dropped_views", [])), dict(doc.get("metrics", {})),
-                   dict(doc.get("settings", {})), dict(doc.get("diagnostics", {})),
+                   list(doc.get("dropped_views", [])), FitMetrics.from_json(metrics) if metrics else None,
+                   dict(doc.get("settings", {})), Diagnostics.from_json(doc.get("diagnostics", {})),
                    dict(provenance) if isinstance(provenance, dict) else {})
 
     @classmethod

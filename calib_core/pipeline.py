@@ -15,6 +15,7 @@ from threadpoolctl import threadpool_limits
 from . import ranges
 from .calibration import Calibration, ViewResult
 from .errors import DataError, SettingsError
+from .fit_report import Diagnostics, ExcludedPoints, FitMetrics, SolverReport
 from .fitting import metrics, view_set
 from .fitting.solve import Data, SolveSettings, levenberg_marquardt
 from .methods import METHODS
@@ -139,20 +140,16 @@ def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Cal
             name, res.poses[k, :3].copy(), res.poses[k, 3:].copy(), metrics.rmse(r), metrics.rmse_axis(r),
             int(len(r)), [int(i) for i in local[m & ~inlier]],
         ))
-    summary = metrics.summary(full[inlier], data.image_points[inlier], obs.image_size)
-    n_unknowns = res.model.n_params + 6 * data.n_views
-    diagnostics = dict(fit.diagnostics)
-    diagnostics["solver"] = {
-        "iterations": res.iterations, "status": res.status, "message": res.message,
-        "cost": res.cost, "n_unknowns": n_unknowns, "seconds": time.perf_counter() - t0,
-    }
-    diagnostics["coverage_hull"] = coverage_hull(data.image_points[inlier])
-    diagnostics["excluded_points"] = {"outliers": int(outlier.sum()), "outside_model": int(fit.excluded.sum())}
-    if fit.excluded.any():
-        diagnostics["excluded_points"]["outside_model_reason"] = fit.excluded_reason
+    fit_metrics = FitMetrics.of(full[inlier], data.image_points[inlier], obs.image_size)
+    solver = SolverReport(res.iterations, res.status, res.message, res.cost, res.model.n_params + 6 * data.n_views,
+                          time.perf_counter() - t0)
+    diagnostics = Diagnostics(
+        extra=dict(fit.diagnostics), restart=fit.restart, model_choice=fit.model_choice, solver=solver,
+        coverage_hull=coverage_hull(data.image_points[inlier]),
+        excluded_points=ExcludedPoints(int(outlier.sum()), int(fit.excluded.sum()), fit.excluded_reason))
     settings_out = {"method": method, "outlier_sigma": outlier_sigma, **fit.settings}
     progress("done", 1.0)
-    return Calibration(res.model, obs.image_size, method, views, dropped, summary, settings_out, diagnostics,
+    return Calibration(res.model, obs.image_size, method, views, dropped, fit_metrics, settings_out, diagnostics,
                        provenance(observations))
 
 

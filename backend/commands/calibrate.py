@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from calib_core import Observations, calibrate
+from calib_core import Calibration, Observations, calibrate
 from calib_core.detection.detect import IMAGE_SUFFIXES
 from calib_core.errors import SettingsError
+from calib_core.fit_report import ChoiceReport
 
 from .detect import BOARD_HELP, TARGET_HELP, detect_with_report
 from .inputs import STDIN, load_observations
@@ -153,7 +154,7 @@ def run(args) -> int:
         cal = calibrate(obs, args.method, progress=progress, outlier_sigma=args.outlier_sigma, **settings)
     from calib_core.report.tables import camera
 
-    cal.diagnostics["camera"] = camera(cal, obs)  # parameters ± σ, field of view, verdict: as the page shows them
+    cal.diagnostics.camera = camera(cal, obs)  # parameters ± σ, field of view, verdict: as the page shows them
     with outputs.writing():
         if cal_file is not None:
             cal_file.write(json_text(cal.to_json()))
@@ -190,39 +191,40 @@ def write_report(folder: OutputFolder, cal, obs: Observations) -> list[str]:
     return sorted([*products, *figures, "report.html"])
 
 
-def print_summary(cal) -> None:
+def print_summary(cal: Calibration) -> None:
     m, d = cal.metrics, cal.diagnostics
+    assert m is not None  # calibrate() measures every fit
     fx, fy, cx, cy, s = cal.model.intrinsics
     print(f"method {cal.method}: fx={fx:.3f} fy={fy:.3f} cx={cx:.3f} cy={cy:.3f} skew={s:.4f} (pixels)")
-    if "model_choice" in d:
-        print_choice(d["model_choice"])
-    if "restart" in d:
-        r = d["restart"]
-        print(f"restarted from a parametric camera: {r['reason']}; kept the {r['kept']} fit "
-              f"({r['first']['rmse']:.3f} px first, {r['restarted']['rmse']:.3f} px restarted)")
-        if "warning" in r:
-            print(f"warning: {r['warning']}")
-    if "design" in d:
-        g = d["design"]
+    if d.model_choice is not None:
+        print_choice(d.model_choice)
+    if d.restart is not None:
+        r = d.restart
+        print(f"restarted from a parametric camera: {r.reason}; kept the {r.kept} fit "
+              f"({r.first.rmse:.3f} px first, {r.restarted.rmse:.3f} px restarted)")
+        if r.warning:
+            print(f"warning: {r.warning}")
+    if "design" in d.extra:  # the B-spline method's own records
+        g = d.extra["design"]
         print(f"knot intervals {g['intervals'][0]} x {g['intervals'][1]}, design rank {g['rank']}/{g['n_controls']}, "
               f"zero columns {g['zero_columns']}")
-    curve = d.get("smoothing_curve")
+    curve = d.extra.get("smoothing_curve")
     if curve:
         print("knot grid, bandwidth and smoothing chosen by how well the field predicts views left out of its fit "
               "(lower is better):")
         chosen = [cal.settings.get("intervals_used"), cal.settings.get("bandwidth_factor_used")]
         table(["grid", "bandwidth factor", "lambda_smooth", "validation [px^2]", "effective parameters", "chosen"],
               [_curve_row(c, chosen) for c in curve])
-    if "camera" in d:
-        print_camera(d["camera"])
-    sv = d.get("solver", {})
-    print(f"solver: {sv.get('status')} after {sv.get('iterations')} iterations ({sv.get('message')}), "
-          f"{sv.get('seconds', 0):.2f} s")
+    if d.camera is not None:
+        print_camera(d.camera)
+    if d.solver is not None:
+        print(f"solver: {d.solver.status} after {d.solver.iterations} iterations ({d.solver.message}), "
+              f"{d.solver.seconds:.2f} s")
     print()
     rows = [(v.name, v.n_points, v.rmse, v.rmse_axis, len(v.outliers)) for v in cal.views]
-    rows.append(("overall", m["n_points"], m["rmse"], m["rmse_axis"], sum(len(v.outliers) for v in cal.views)))
+    rows.append(("overall", m.n_points, m.rmse, m.rmse_axis, sum(len(v.outliers) for v in cal.views)))
     table(["view", "points", "rmse [px]", "rmse_axis [px]", "outliers"], rows)
-    print(f"\ncentre rmse {m['rmse_center']:.4f} px, edge rmse {m['rmse_edge']:.4f} px")
+    print(f"\ncentre rmse {m.rmse_center:.4f} px, edge rmse {m.rmse_edge:.4f} px")
     for dv in cal.dropped_views:
         print(f"dropped {dv['name']}: {dv['reason']}")
 
@@ -239,14 +241,14 @@ def print_camera(cam: dict) -> None:
     print(f"verdict: {cam['verdict']['text']}")
 
 
-def print_choice(choice: dict) -> None:
+def print_choice(choice: ChoiceReport) -> None:
     """The model choice in words, and the score table that made it."""
-    print(f"model chosen: {choice['summary']}")
-    print(f"rule: {choice['rule']}; {choice['how']}")
+    print(f"model chosen: {choice.summary}")
+    print(f"rule: {choice.rule}; {choice.how}")
     table(["candidate", "validation rmse per axis [px]", "± one standard error of its excess", "parameters", "chosen"],
-          [(c["label"], _or_dash(c["validation_rmse"]), _or_dash(c.get("standard_error_rmse")), c["n_params"] or "—",
-            "*" if c["chosen"] else c.get("error", "") or ("within the noise" if c.get("within_noise") else ""))
-           for c in choice["candidates"]])
+          [(c.label, _or_dash(c.validation_rmse), _or_dash(c.standard_error_rmse), c.n_params or "—",
+            "*" if c.chosen else c.error or ("within the noise" if c.within_noise else ""))
+           for c in choice.candidates])
 
 
 def _or_dash(x):

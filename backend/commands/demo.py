@@ -34,11 +34,12 @@ def run(args) -> int:
         t0 = time.perf_counter()
         cal = calibrate(s.train, "auto")
         seconds = time.perf_counter() - t0
-        m = cal.metrics
-        floor = noise_floor(args.sigma, cal.diagnostics["solver"]["n_unknowns"], m["n_points"])
+        m, solver, choice = cal.metrics, cal.diagnostics.solver, cal.diagnostics.model_choice
+        assert m is not None and solver is not None and choice is not None  # calibrate(method auto) records them
+        floor = noise_floor(args.sigma, solver.n_unknowns, m.n_points)
         hold = evaluate(cal, s.holdout)
-        chosen = next(c["label"] for c in cal.diagnostics["model_choice"]["candidates"] if c["chosen"])
-        rows.append((kind, chosen, m["n_points"], m["rmse"], m["rmse_axis"], floor, hold["rmse"], seconds))
+        rows.append((kind, choice.chosen_candidate.label, m.n_points, m.rmse, m.rmse_axis, floor, hold["rmse"],
+                     seconds))
     if args.json:
         print_json({"sigma": args.sigma, "seed": args.seed, "method": "auto",
                     "lenses": [dict(zip(KEYS, row, strict=True)) for row in rows]})

@@ -34,8 +34,8 @@ def summary(cal: Calibration, excluded: int = 0) -> dict[str, Any]:
     """What the jobs list and the side-by-side table of a set's calibrations show without reading files:
     the figures, the model and verdict in words, the views used and left out, and the error on views left
     out of the fit (``validation``) where the method measured one."""
-    camera = cal.diagnostics.get("camera") or {}
-    return json_safe({"method": cal.method, "metrics": cal.metrics, "n_views": len(cal.views),
+    camera = cal.diagnostics.camera or {}
+    return json_safe({"method": cal.method, "metrics": {} if cal.metrics is None else cal.metrics.to_json(), "n_views": len(cal.views),
                       "dropped_views": len(cal.dropped_views), "excluded_views": excluded,
                       "model": camera.get("model"), "grade": (camera.get("verdict") or {}).get("grade"),
                       **validation_of(cal)})
@@ -44,13 +44,11 @@ def summary(cal: Calibration, excluded: int = 0) -> dict[str, Any]:
 def validation_of(cal: Calibration) -> dict[str, Any]:
     """The model choice's chosen candidate (method auto: rmse per axis on views left out, px), or the
     B-spline's chosen knot grid (validation error, px²)."""
-    choice = cal.diagnostics.get("model_choice")
-    if choice:
-        chosen = next((c for c in choice.get("candidates", []) if c.get("chosen")), None)
-        if chosen and chosen.get("validation_rmse") is not None:
-            return {"choice": choice.get("summary"), "validation": {"rmse_axis": chosen["validation_rmse"],
-                                                                    "how": "views left out of the fit"}}
-    curve = cal.diagnostics.get("smoothing_curve") or []
+    choice = cal.diagnostics.model_choice
+    if choice is not None and choice.chosen_candidate.validation_rmse is not None:
+        return {"choice": choice.summary, "validation": {"rmse_axis": choice.chosen_candidate.validation_rmse,
+                                                         "how": "views left out of the fit"}}
+    curve = cal.diagnostics.extra.get("smoothing_curve") or []  # the B-spline method's own record
     used = cal.settings.get("intervals_used")
     chosen = next((c for c in curve if c.get("intervals") == used and not c.get("skipped")), None)
     if chosen and chosen.get("cv") is not None:

@@ -57,7 +57,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
         return {"artefacts": names, "summary": artefacts.compare_summary(result)}
     cal = calibrate(obs, job["method"], progress=lambda s, f: run.progress(s, f, 0.0, 0.97), **settings)
     if exclude:
-        cal.diagnostics["excluded_views"] = exclude   # in calibration.json: the views the user left out
+        cal.diagnostics.excluded_views = exclude   # in calibration.json: the views the user left out
     run.progress("metrics", 0.0, 0.97, 1.0)
     names = artefacts.write_calibration(out, cal, obs)
     return {"artefacts": names, "summary": artefacts.summary(cal, len(exclude))}

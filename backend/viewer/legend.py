@@ -7,7 +7,8 @@ from .scene import Built
 
 def legend(result: JobResult, built: Built) -> str:
     lg = built.legend
-    rmse = result.calibration.metrics.get("rmse")
+    metrics = result.calibration.metrics
+    rmse = None if metrics is None else metrics.rmse
     field_px = lg.get("field_max_px", 0)
     return "\n".join([
         f"**{len(result.boards)} board poses**" + (f", rmse {rmse:.3f} px" if rmse else ""),

@@ -24,7 +24,9 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..calibration import Calibration
 from ..errors import CalibError, DataError, SettingsError
+from ..fit_report import FitMetrics
 from ..fitting import metrics
 from ..fitting.choice import Candidate, choose
 from ..fitting.crossval import folds
@@ -50,7 +52,7 @@ N_PERMUTATIONS = 200
 class MethodScores:
     """One method's fit of the corners, and how it predicts views it has not seen."""
 
-    fit: dict[str, Any]                # rmse, rmse_axis, rmse_center, rmse_edge, n_points (px; as Calibration.metrics)
+    fit: FitMetrics                    # the fit's error over its corners (Calibration.metrics)
     views: list[dict[str, Any]]        # per view: name, rmse, rmse_axis, n_points
     n_params: int                      # the parameters the fit moved
     quality: dict[str, Any]            # the paper's Table 7 (quality.py), or {"error": why}
@@ -62,7 +64,7 @@ class MethodScores:
         return None if self.cv is None else self.cv["validation_rmse"]["mean"]
 
     def to_json(self) -> dict[str, Any]:
-        out = {**self.fit, "views": self.views, "n_params": self.n_params, "quality": self.quality,
+        out = {**self.fit.to_json(), "views": self.views, "n_params": self.n_params, "quality": self.quality,
                **(self.holdout or {})}
         if self.cv is not None:
             out.update(cv=self.cv, cv_validation_rmse=self.cv_validation_rmse)
@@ -155,7 +157,7 @@ def _cross_validate(obs: Observations, method: str, splits: int) -> tuple[dict[s
         train = obs.select([n for n in names if n not in val_names])
         cal = calibrate(train, method)
         r, data, _ = validation_residuals(cal, obs.select(val_names))
-        cal_rmse.append(cal.metrics["rmse"])
+        cal_rmse.append(_fit_metrics(cal).rmse)
         val_rmse.append(metrics.rmse(r))
         rows.append({"validated": val_names, "calibration_rmse": cal_rmse[-1], "validation_rmse": val_rmse[-1],
                      "increase": val_rmse[-1] - cal_rmse[-1]})
@@ -210,7 +212,7 @@ def _scores(observations: Observations, name: str, splits: int, holdout: Observa
             cv_residuals: dict) -> MethodScores:
     cal = calibrate(observations, name, scaled(part, 0.0, 0.5 if splits else 0.9))
     scores = MethodScores(
-        fit={key: cal.metrics[key] for key in ("rmse", "rmse_axis", "rmse_center", "rmse_edge", "n_points")},
+        fit=_fit_metrics(cal),
         views=[{"name": v.name, "rmse": v.rmse, "rmse_axis": v.rmse_axis, "n_points": v.n_points} for v in cal.views],
         n_params=fitted_parameter_count(cal.model),  # what the fit moved, not what the model could
         quality=_quality(quality.geometric_quality, cal, observations))  # paper Table 7
@@ -223,6 +225,13 @@ def _scores(observations: Observations, name: str, splits: int, holdout: Observa
         part(f"cross-validation over {splits} splits", 0.5)
         scores.cv, cv_residuals[name] = _cross_validate(observations, name, splits)
     return scores
+
+
+def _fit_metrics(cal: Calibration) -> FitMetrics:
+    """The error figures of a calibration ``calibrate`` made: it measures every fit."""
+    if cal.metrics is None:
+        raise ValueError(f"the {cal.method} calibration records no fit")
+    return cal.metrics
 
 
 def _quality(fn: Callable[..., dict[str, Any]], *args) -> dict[str, Any]:

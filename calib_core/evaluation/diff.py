@@ -128,7 +128,7 @@ def _in_front(cal: Calibration, rays: np.ndarray) -> np.ndarray:
 
 def _covered(a: Calibration, b: Calibration, q: np.ndarray) -> np.ndarray | None:
     """(G,) pixels inside both calibrations' coverage hulls, or None if one has none."""
-    hulls = [np.asarray(c.diagnostics.get("coverage_hull") or [], dtype=np.float64).reshape(-1, 2) for c in (a, b)]
+    hulls = [np.asarray(c.diagnostics.coverage_hull or [], dtype=np.float64).reshape(-1, 2) for c in (a, b)]
     if any(len(hull) < 3 for hull in hulls):
         return None
     return inside_convex(hulls[0], q) & inside_convex(hulls[1], q)

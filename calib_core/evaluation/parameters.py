@@ -72,11 +72,10 @@ def _grid(model: CameraModel) -> str:
 
 def how_chosen(cal: Calibration) -> str:
     """Why this model: method auto's choice in its own words, or the method asked for."""
-    choice = cal.diagnostics.get("model_choice")
-    if cal.method == "auto" and isinstance(choice, dict) and choice.get("summary"):
-        summary = str(choice["summary"])
-        reason = summary.split(": ", 1)[1] if ": " in summary else summary
-        return f"chosen by method auto among {len(choice.get('candidates', []))} candidates: {reason}"
+    choice = cal.diagnostics.model_choice
+    if cal.method == "auto" and choice is not None and choice.summary:
+        reason = choice.summary.split(": ", 1)[1] if ": " in choice.summary else choice.summary
+        return f"chosen by method auto among {len(choice.candidates)} candidates: {reason}"
     return f"as asked (method {cal.method})"
 
 
@@ -219,7 +218,7 @@ def describe_camera(cal: Calibration, data: Data, poses: np.ndarray) -> dict[str
                    "measure": "worst-direction standard deviation of a projected direction (boards frame), "
                               "over the image cells with an observed corner nearby"}
     out["projection_uncertainty"] = unc
-    out["verdict"] = verdict(float(cal.metrics.get("rmse", np.nan)), unc)
+    out["verdict"] = verdict(_fit_rmse(cal), unc)
     return out
 
 
@@ -232,4 +231,8 @@ def describe_without_corners(cal: Calibration) -> dict[str, Any]:
             "parameters": parameter_table(cal.model, None), "field": field_summary(cal),
             "field_of_view_deg": field_of_view(cal), "projection_uncertainty": None,
             "uncertainty_error": "no standard deviations: they need the corners the calibration was fitted to",
-            "verdict": verdict(float(cal.metrics.get("rmse", np.nan)), None)}
+            "verdict": verdict(_fit_rmse(cal), None)}
+
+
+def _fit_rmse(cal: Calibration) -> float:
+    return np.nan if cal.metrics is None else cal.metrics.rmse

@@ -119,9 +119,9 @@ class LeanFit:
 
     @property
     def calibration(self) -> Calibration:
-        """The parametric model in a Calibration (no views)."""
-        return Calibration(self.parametric, self.image_size, self.name,
-                           metrics={"fit_rms_px": self.rms}, settings={"fitted_to": self.fitted_to})
+        """The parametric model in a Calibration (no views, and no fit of its own: its
+        error against the source is this LeanFit's ``covered`` and ``image``)."""
+        return Calibration(self.parametric, self.image_size, self.name, settings={"fitted_to": self.fitted_to})
 
     def summary(self) -> dict[str, Any]:
         return {"model": self.name, "exact": self.exact, "fitted_to": self.fitted_to,
@@ -183,8 +183,9 @@ def inside_hull(pixels: np.ndarray, covered: np.ndarray) -> np.ndarray:
 def covered_pixels(cal: Calibration, covered: np.ndarray | None) -> np.ndarray | None:
     """The pixels bounding the covered region: ``covered`` if given, else the hull the
     calibration recorded (``diagnostics.coverage_hull``), else None (the whole image)."""
-    if covered is None and len(cal.diagnostics.get("coverage_hull", [])) >= 3:
-        covered = np.asarray(cal.diagnostics["coverage_hull"], dtype=np.float64)
+    hull = cal.diagnostics.coverage_hull or []
+    if covered is None and len(hull) >= 3:
+        covered = np.asarray(hull, dtype=np.float64)
     return None if covered is None else np.asarray(covered, dtype=np.float64).reshape(-1, 2)
 
 

@@ -30,9 +30,8 @@ def _storage_string(cal: Calibration, extra: dict[str, float | str] | None = Non
     fs.write("distortion_model", doc["distortion"]["type"])
     fs.write("camera_matrix", K)
     fs.write("distortion_coefficients", np.asarray(doc["distortion"]["coefficients"], dtype=np.float64).reshape(1, -1))
-    rmse = cal.metrics.get("rmse")
-    if rmse is not None and math.isfinite(rmse):
-        fs.write("avg_reprojection_error", float(rmse))
+    if cal.metrics is not None and math.isfinite(cal.metrics.rmse):
+        fs.write("avg_reprojection_error", cal.metrics.rmse)
     for key, val in (extra or {}).items():
         fs.write(key, val)
     return fs.releaseAndGetString()

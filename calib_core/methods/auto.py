@@ -27,6 +27,7 @@ import numpy as np
 
 from .. import ranges
 from ..errors import DataError
+from ..fit_report import ChoiceReport
 from ..fitting.choice import Candidate, ModelChoice, choose
 from ..fitting.crossval import linearised_view_errors
 from ..fitting.init import initialise
@@ -89,7 +90,7 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
         part = named(scaled(progress, share, 1.0), f"{spec.label}, on all {data.n_views} views")
         fit = _fit_spec(spec, data, image_size, {}, part, **grid)
     settings = {**fit.settings, "chosen": spec.name, "decision_views": s.decision_views}
-    return dataclasses.replace(fit, settings=settings, diagnostics={**fit.diagnostics, "model_choice": choice.to_json()})
+    return dataclasses.replace(fit, settings=settings, model_choice=ChoiceReport.from_json(choice.to_json()))
 
 
 def _fit_spec(spec: Spec, data: Data, image_size, cores: dict[str, Fit | None], progress: Progress,

@@ -34,6 +34,7 @@ import scipy.sparse as sp
 
 from .. import ranges
 from ..errors import DataError, SettingsError
+from ..fit_report import Restart, RestartFit
 from ..fitting import knots, metrics
 from ..fitting.choice import Candidate, choose
 from ..fitting.crossval import linearised_view_errors
@@ -434,18 +435,15 @@ def _restarted(res, start, reference, data: Data, final: SolveSettings, why: str
     settled = levenberg_marquardt(start, ref_poses, data, dataclasses.replace(final, free_params=free))
     again = levenberg_marquardt(settled.model, settled.poses, data, final)
 
-    def record(r):
-        return {"rmse": metrics.rmse(r.residuals), "fx": float(r.model.intrinsics[0]),
-                "fy": float(r.model.intrinsics[1]), "iterations": r.iterations}
+    def record(r) -> RestartFit:
+        return RestartFit(metrics.rmse(r.residuals), float(r.model.intrinsics[0]), float(r.model.intrinsics[1]),
+                          r.iterations)
 
     keep = again if again.cost < res.cost else res
     still = wrong_camera(keep, reference, data)
-    report = {"reason": why, "first": record(res), "restarted": record(again),
-              "kept": "restarted" if keep is again else "first"}
-    if still:
-        report["warning"] = (f"the field cannot follow this lens on this grid and base ({still}): use method auto, "
-                             "--base equidistant for a wide lens, or more views")
-    return keep, report
+    warning = (f"the field cannot follow this lens on this grid and base ({still}): use method auto, "
+               "--base equidistant for a wide lens, or more views") if still else ""
+    return keep, Restart(why, record(res), record(again), "restarted" if keep is again else "first", warning)
 
 
 def sample_weights(samples: np.ndarray, response: np.ndarray, s: BSplineSettings) -> np.ndarray:
@@ -544,10 +542,11 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
     if res is None:
         res = levenberg_marquardt(model, poses, sub, final, on_iteration)
     wrong = wrong_camera(res, reference, sub)
+    restart_record = None
     if wrong:
         progress("restart", 0.9)
         restart = _fitted(problem, breaks, s.lambda_reg, lam, start, *first_samples)
-        res, diagnostics["restart"] = _restarted(res, restart, reference, sub, final, wrong)
+        res, restart_record = _restarted(res, restart, reference, sub, final, wrong)
     settings = dataclasses.asdict(s)
     settings.update(res.model.settings_json())
     settings["intervals_used"] = [len(breaks[0]) - 1, len(breaks[1]) - 1]
@@ -555,4 +554,4 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
     settings["knot_breaks_u"] = breaks[0].tolist()
     settings["knot_breaks_v"] = breaks[1].tolist()
     settings["core_used"] = core
-    return Fit(res, ~ok, reason, settings, diagnostics, solve_settings=final)
+    return Fit(res, ~ok, reason, settings, diagnostics, solve_settings=final, restart=restart_record)

@@ -9,6 +9,7 @@ from typing import Any, Generic
 import numpy as np
 
 from ..errors import SettingsError
+from ..fit_report import ChoiceReport, Restart
 from ..fitting.solve import Data, ModelT_co, SolveResult, SolveSettings
 
 Progress = Callable[[str, float], None]
@@ -39,7 +40,7 @@ class Fit(Generic[ModelT_co]):
     excluded: np.ndarray  # (N,) bool: points the model cannot represent (not fitted)
     excluded_reason: str = ""
     settings: dict[str, Any] = field(default_factory=dict)
-    diagnostics: dict[str, Any] = field(default_factory=dict)
+    diagnostics: dict[str, Any] = field(default_factory=dict)  # the method's own records (Diagnostics.extra)
     # Refit on a subset of the points (after outlier rejection), for methods
     # whose model is not all refined by LM (residual fields); None: plain LM.
     refit: Callable[[Data, SolveResult[ModelT_co]], SolveResult[ModelT_co]] | None = None
@@ -48,6 +49,8 @@ class Fit(Generic[ModelT_co]):
     # trials: damped steps crawl along its flat valley (BabelCalib's outlier
     # refits: 13 iterations against 3).
     solve_settings: SolveSettings | None = None
+    model_choice: ChoiceReport | None = None  # method auto's choice among candidates
+    restart: Restart | None = None  # a field fit restarted from a parametric camera
 
 
 def settings_from(cls, values: dict[str, Any]):

@@ -153,7 +153,7 @@ def covered_camera(cal: Calibration, size: tuple[int, int] | None = None,
     from scipy.spatial import Delaunay
 
     w, h = _size(size or cal.image_size)
-    pts = np.asarray(cal.diagnostics.get("coverage_hull", []) if hull is None else hull, dtype=np.float64).reshape(-1, 2)
+    pts = np.asarray(cal.diagnostics.coverage_hull or [] if hull is None else hull, dtype=np.float64).reshape(-1, 2)
     if len(pts) < 3:
         raise RectifyError("the calibration records no covered region (coverage_hull); give the observations")
     tri = Delaunay(pts)

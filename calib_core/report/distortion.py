@@ -78,7 +78,7 @@ def distortion_maps(cal: Calibration, samples: tuple[int, int]) -> dict[str, Any
     dtheta = theta - theta_eq
     # past the corners' farthest angle the model extrapolates (a circular fisheye's black frame): shown,
     # but kept out of the scale, which would otherwise be that extrapolation's
-    reach = (cal.diagnostics.get("camera") or {}).get("max_corner_angle_deg")
+    reach = (cal.diagnostics.camera or {}).get("max_corner_angle_deg")
     within = theta <= reach if isinstance(reach, (int, float)) else np.isfinite(theta)
     maps["angle"] = {"label": "angle off axis, against the equidistant lens", "unit": "°", "theta": theta,
                      "dtheta": dtheta, "scale": _scale(dtheta[within]), "reach_deg": reach,

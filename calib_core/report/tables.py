@@ -30,8 +30,8 @@ UNCERTAINTY_STEP = 32.0    # px between the uncertainty map's samples
 def report_files(cal: Calibration, obs: Observations) -> dict[str, Any]:
     """File name → content (str for text, anything else as JSON) of every
     product of one calibration."""
-    if "camera" not in cal.diagnostics:  # the parameters' table the page leads with, in the calibration itself
-        cal.diagnostics["camera"] = camera(cal, obs)
+    if cal.diagnostics.camera is None:  # the parameters' table the page leads with, in the calibration itself
+        cal.diagnostics.camera = camera(cal, obs)
     corners = corner_residuals(cal, obs)
     files = calibration_files(cal, with_flags(view_residuals(cal, corners), view_flags(cal, obs)))
     files["corner_residuals.json"] = corners
@@ -54,8 +54,9 @@ def calibration_files(cal: Calibration, views: list[dict[str, Any]]) -> dict[str
     yaml = opencv_yaml(cal)
     if yaml is not None:
         files["opencv.yaml"] = yaml
-    row = {"method": cal.method, **{k: v for k, v in cal.metrics.items() if _scalar(v)},
-           "n_params": fitted_parameter_count(cal.model), "seconds": cal.diagnostics.get("solver", {}).get("seconds")}
+    solver = cal.diagnostics.solver
+    row = {"method": cal.method, **({} if cal.metrics is None else cal.metrics.to_json()),
+           "n_params": fitted_parameter_count(cal.model), "seconds": None if solver is None else solver.seconds}
     files["comparison.json"] = {"rows": [row]}
     files["comparison.csv"] = to_csv([row])
     return files
@@ -77,7 +78,7 @@ def report_products(cal: Calibration, obs: Observations | None = None) -> dict[s
         products["knot_cells.json"] = knot_cells(cal, products["corner_residuals.json"])
         products["uncertainty.json"] = uncertainty_map(cal, obs)
         products["coverage.json"] = coverage_of(obs)
-        products["parameters.json"] = cal.diagnostics["camera"]
+        products["parameters.json"] = cal.diagnostics.camera
     return {name: content for name, content in products.items() if content is not None}
 
 

@@ -42,7 +42,7 @@ def test_zhang_matches_cv2_calibrate_camera_on_the_same_corners():
     criteria = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 1000, 1e-15)  # OpenCV's default (30 its) stops early
     rms, k, dist, _, _ = cv2.calibrateCamera(obj, img, obs.image_size, None, None, criteria=criteria)
     # cv2 projects float32 corners; our rmse is over float64 copies of the same values.
-    assert abs(cal.metrics["rmse"] - rms) < 1e-6
+    assert abs(cal.metrics.rmse - rms) < 1e-6
     fx, fy, cx, cy, _ = cal.model.intrinsics
     assert np.allclose([fx, fy, cx, cy], [k[0, 0], k[1, 1], k[0, 2], k[1, 2]], rtol=1e-5)
     assert np.allclose(cal.model.coefficients, dist.ravel()[:5], atol=1e-4)
@@ -53,8 +53,8 @@ def test_zhang_matches_cv2_calibrate_camera_on_the_same_corners():
 def test_every_baseline_converges_on_real_corners(method):
     obs = stereo_left()
     cal = calibrate(obs, method)
-    assert cal.diagnostics["solver"]["status"] in ("converged", "stalled")
-    assert cal.metrics["rmse"] < 0.5  # corners of a mild lens at sub-pixel accuracy
+    assert cal.diagnostics.solver.status in ("converged", "stalled")
+    assert cal.metrics.rmse < 0.5  # corners of a mild lens at sub-pixel accuracy
     back = Calibration.from_json(cal.to_json())
     pts = np.array([[0.0, 0.0, 500.0], [100.0, -50.0, 600.0]])
     assert np.allclose(back.project(pts), cal.project(pts), atol=1e-9)

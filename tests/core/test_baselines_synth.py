@@ -15,7 +15,7 @@ NOISE_RMSE = 0.3 * np.sqrt(2)  # per-point rmse of σ = 0.3 px per axis
 
 def test_zhang_recovers_the_radial_lens():
     cal = calibrate(synthetic("radial").train, "zhang")
-    assert cal.metrics["rmse"] < 1.05 * NOISE_RMSE
+    assert cal.metrics.rmse < 1.05 * NOISE_RMSE
     assert np.allclose(cal.model.intrinsics[:4], synth.INTRINSICS, atol=0.5)
     assert np.allclose(cal.model.coefficients, [0.05, 0.0267, 0.0067, 0.01, 0.0067], atol=2e-3)
 
@@ -23,16 +23,16 @@ def test_zhang_recovers_the_radial_lens():
 @pytest.mark.parametrize("method", ["rational", "fisheye"])
 def test_wide_models_fit_the_fisheye_lens(method):
     cal = calibrate(synthetic("fisheye").train, method)
-    assert cal.diagnostics["solver"]["status"] in ("converged", "stalled")
-    assert cal.metrics["rmse"] < 1.05 * NOISE_RMSE
+    assert cal.diagnostics.solver.status in ("converged", "stalled")
+    assert cal.metrics.rmse < 1.05 * NOISE_RMSE
 
 
 def test_residual_field_improves_on_zhang_where_no_parametric_model_fits():
     train = synthetic("asymmetric").train
     zhang = calibrate(train, "zhang")
     mls = calibrate(train, "mls")
-    assert mls.metrics["rmse"] < 0.5 * zhang.metrics["rmse"]
-    table = mls.diagnostics["grid_search"]["table"]
+    assert mls.metrics.rmse < 0.5 * zhang.metrics.rmse
+    table = mls.diagnostics.extra["grid_search"]["table"]
     assert [row["value"] for row in table] == [0.05, 0.10, 0.15, 0.20]
     best = min(table, key=lambda row: row["cv_rmse"])["value"]
     assert mls.settings["chosen_support"] == best  # chosen by held-out views

@@ -25,7 +25,7 @@ def searched():
 def test_auto_bandwidth_picks_a_factor_and_records_the_curve(searched):
     chosen = searched.settings["bandwidth_factor_used"]
     assert chosen in AUTO_BANDWIDTH_FACTORS
-    curve = searched.diagnostics["smoothing_curve"]
+    curve = searched.diagnostics.extra["smoothing_curve"]
     assert {c["bandwidth_factor"] for c in curve} == set(AUTO_BANDWIDTH_FACTORS)
     # Each factor scores its two coarsest grids at least; finer ones stop once
     # two in a row predicted no better than the best before them.
@@ -40,13 +40,13 @@ def test_auto_bandwidth_picks_a_factor_and_records_the_curve(searched):
 @pytest.mark.slow
 def test_a_budget_that_is_not_reached_changes_nothing(searched):
     again = auto_bandwidth(time_budget=1e3)
-    assert again.diagnostics["smoothing_curve"] == searched.diagnostics["smoothing_curve"]
+    assert again.diagnostics.extra["smoothing_curve"] == searched.diagnostics.extra["smoothing_curve"]
     assert again.settings["bandwidth_factor_used"] == searched.settings["bandwidth_factor_used"]
 
 
 def test_the_time_budget_stops_the_search_and_says_so():
     cal = auto_bandwidth(time_budget=1e-9)
-    first, *rest = cal.diagnostics["smoothing_curve"]
+    first, *rest = cal.diagnostics.extra["smoothing_curve"]
     assert "cv" in first  # the first candidate always runs
     assert rest and all(c["skipped"] == "time budget" and "cv" not in c for c in rest)
     assert [cal.settings["intervals_used"], cal.settings["bandwidth_factor_used"]] == [first["intervals"], 1.0]

@@ -29,9 +29,9 @@ def results():
 @pytest.mark.parametrize("kind, ratio", [("radial", 1.05), ("asymmetric", 1.05), ("fisheye", 1.5)])
 def test_training_error_is_at_the_noise_floor(results, kind, ratio):
     cal, _ = results[kind]
-    floor = noise_floor(0.3, cal.diagnostics["solver"]["n_unknowns"], cal.metrics["n_points"])
-    assert cal.metrics["rmse_axis"] <= ratio * floor
-    assert cal.metrics["rmse_axis"] >= 0.9 * floor  # not fitting the noise either
+    floor = noise_floor(0.3, cal.diagnostics.solver.n_unknowns, cal.metrics.n_points)
+    assert cal.metrics.rmse_axis <= ratio * floor
+    assert cal.metrics.rmse_axis >= 0.9 * floor  # not fitting the noise either
 
 
 @pytest.mark.slow
@@ -47,10 +47,11 @@ def test_result_carries_diagnostics_and_settings(results):
     cal, _ = results["asymmetric"]
     d = cal.diagnostics
     assert cal.method == "auto" and cal.settings["method"] == "auto" and cal.model.kind == "bspline"
-    assert cal.settings["chosen"] == "bspline" and d["model_choice"]["chosen"] == "bspline"
-    assert d["design"]["rank"] == d["design"]["n_controls"] and d["design"]["zero_columns"] >= 0
-    assert d["solver"]["status"] in ("converged", "stalled") and d["solver"]["iterations"] > 0
-    scored = [c for c in d["smoothing_curve"] if "skipped" not in c]
+    assert cal.settings["chosen"] == "bspline" and d.model_choice.chosen == "bspline"
+    design = d.extra["design"]
+    assert design["rank"] == design["n_controls"] and design["zero_columns"] >= 0
+    assert d.solver.status in ("converged", "stalled") and d.solver.iterations > 0
+    scored = [c for c in d.extra["smoothing_curve"] if "skipped" not in c]
     assert len(scored) >= 2 and all("cv" in c and "validation" in c for c in scored)
     assert cal.settings["gauge"]["point"] is not None and cal.settings["intervals_used"]
 
@@ -72,11 +73,11 @@ def test_a_lens_opencv_models_exactly_gets_that_model_and_no_field(results):
     cal, _ = results["radial"]
     assert cal.settings["chosen"] == "zhang" and cal.model.kind == "opencv"
     assert cal.to_json()["distortion"]["type"] == "opencv"
-    assert cal.diagnostics["model_choice"]["summary"].startswith("OpenCV 5-coefficient model")
+    assert cal.diagnostics.model_choice.summary.startswith("OpenCV 5-coefficient model")
     zhang = calibrate(synthetic("radial").train, "zhang")
     rays = np.array([[0.0, 0.0, 1.0], [0.8, -0.6, 1.0], [-1.2, 1.1, 1.0]])
     assert np.allclose(cal.project(rays), zhang.project(rays), atol=1e-9)
-    assert np.isclose(cal.metrics["rmse"], zhang.metrics["rmse"], rtol=1e-12)
+    assert np.isclose(cal.metrics.rmse, zhang.metrics.rmse, rtol=1e-12)
 
 
 @pytest.mark.slow
@@ -95,8 +96,8 @@ def test_a_saved_calibration_keeps_what_its_covariance_needs(results, kind):
 def test_paper_model_without_core_reaches_the_floor():
     s = synthetic("asymmetric")
     cal = calibrate(s.train, "bspline", core="none", intervals=10, lambda_smooth=100.0)
-    floor = noise_floor(0.3, cal.diagnostics["solver"]["n_unknowns"], cal.metrics["n_points"])
-    assert cal.model.kind == "bspline" and cal.metrics["rmse_axis"] <= 1.05 * floor
+    floor = noise_floor(0.3, cal.diagnostics.solver.n_unknowns, cal.metrics.n_points)
+    assert cal.model.kind == "bspline" and cal.metrics.rmse_axis <= 1.05 * floor
     assert evaluate(cal, s.holdout)["rmse"] < 0.2
 
 
@@ -112,10 +113,10 @@ def test_a_field_that_cannot_follow_the_lens_says_so_and_the_default_can():
 
     train = synth.generate("fisheye", sigma=0.0, n_views=6).train
     cal = calibrate(train, "bspline", outlier_sigma=0, knots="uniform", intervals=(4, 4))
-    restart = cal.diagnostics["restart"]
-    assert "focal length" in restart["reason"] and "use method auto" in restart["warning"]
-    assert cal.metrics["rmse"] <= min(restart["first"]["rmse"], restart["restarted"]["rmse"]) + 1e-9
-    assert calibrate(train, outlier_sigma=0).metrics["rmse"] < 0.05
+    restart = cal.diagnostics.restart
+    assert "focal length" in restart.reason and "use method auto" in restart.warning
+    assert cal.metrics.rmse <= min(restart.first.rmse, restart.restarted.rmse) + 1e-9
+    assert calibrate(train, outlier_sigma=0).metrics.rmse < 0.05
 
 
 @pytest.mark.slow
@@ -126,7 +127,7 @@ def test_a_large_set_decides_the_model_on_a_spread_of_views_and_fits_all():
     n = AutoSettings().decision_views
     s = synth.generate("radial", 0.3, 0, n_views=n + 4)
     cal = calibrate(s.train)
-    assert f"decided on {n} of the {n + 4} views" in cal.diagnostics["model_choice"]["how"]
+    assert f"decided on {n} of the {n + 4} views" in cal.diagnostics.model_choice.how
     assert len(cal.views) == n + 4 and all(v.n_points > 0 for v in cal.views)
     assert cal.model.kind == "opencv"  # OpenCV's own lens: no field pays
     assert evaluate(cal, s.holdout)["rmse"] < 0.06
@@ -165,9 +166,9 @@ def test_a_core_that_cannot_fit_the_corners_leaves_the_others_in_the_running(mon
 
     monkeypatch.setattr(bspline_method, "fit_opencv", five_coefficients_diverge)
     cal = calibrate(synthetic("radial").train)
-    candidates = cal.diagnostics["model_choice"]["candidates"]
-    assert candidates[0]["validation_rmse"] is None and "diverged" in candidates[0]["error"]
-    assert sum(c["chosen"] for c in candidates) == 1 and cal.settings["chosen"] == "rational"
+    candidates = cal.diagnostics.model_choice.candidates
+    assert candidates[0].validation_rmse is None and "diverged" in candidates[0].error
+    assert sum(c.chosen for c in candidates) == 1 and cal.settings["chosen"] == "rational"
     json.dumps(cal.to_json(), allow_nan=False)
 
 
@@ -179,10 +180,9 @@ def test_a_set_too_small_for_a_field_gets_a_core_alone_and_names_why():
     obs = Observations(s.train.image_size, [v.subset(np.arange(len(v)) % 12 == 0) for v in s.train.views[:4]],
                        s.train.board)
     cal = calibrate(obs)
-    choice = cal.diagnostics["model_choice"]["candidates"]
-    paper = next(c for c in choice if c["name"] == "bspline")
-    best = next(c for c in choice if c["chosen"])
-    assert not paper["chosen"] and ("unknowns" in paper.get("error", "")
-                                    or paper["validation_rmse"] > 2 * best["validation_rmse"])
+    choice = cal.diagnostics.model_choice
+    paper = next(c for c in choice.candidates if c.name == "bspline")
+    best = choice.chosen_candidate
+    assert not paper.chosen and ("unknowns" in paper.error or paper.validation_rmse > 2 * best.validation_rmse)
     with pytest.raises(DataError, match="equations for .* unknowns: add views, or use fewer knot intervals"):
         calibrate(obs, "bspline", knots="uniform", intervals=15, core="none")

@@ -42,7 +42,7 @@ def test_parametric_model_wins_on_its_own_lens(result):
     # The radial lens is OpenCV's model: zhang fits it to the noise, KB cannot.
     ms = result.scored
     assert ms["zhang"].cv_validation_rmse < ms["fisheye"].cv_validation_rmse
-    assert ms["zhang"].fit["rmse"] < 0.3 * np.sqrt(2) * 1.1
+    assert ms["zhang"].fit.rmse < 0.3 * np.sqrt(2) * 1.1
     assert result.verdict in ("zhang", "mls")
     assert not result.verdict_detail["spatial_structure"]["structured"]
 

@@ -17,6 +17,7 @@ from backend.cli import main
 from calib_core import Calibration, calibrate
 from calib_core.evaluation.diff import projection_diff
 from calib_core.exports import cameramodel, fit_lean
+from calib_core.fit_report import Diagnostics
 from calib_core.models.opencv import OpenCVModel
 
 from ..conftest import synthetic
@@ -40,7 +41,7 @@ class Turned(Calibration):
 
 def pinhole(f: float, hull=None) -> Calibration:
     model = OpenCVModel([f, f, CENTRE[0], CENTRE[1], 0.0], np.zeros(5))
-    return Calibration(model, (W, H), "zhang", diagnostics={"coverage_hull": hull} if hull else {})
+    return Calibration(model, (W, H), "zhang", diagnostics=Diagnostics(coverage_hull=hull))
 
 
 def test_a_turned_camera_frame_is_no_difference():

@@ -40,14 +40,14 @@ def opencv4_calibration():
     fit of the radial lens's zhang calibration, with the corners' hull it was fitted on."""
     source = cal_of("radial", "zhang")
     cal = fit_lean(source, "opencv4").calibration
-    cal.diagnostics["coverage_hull"] = source.diagnostics["coverage_hull"]
+    cal.diagnostics.coverage_hull = source.diagnostics.coverage_hull
     cal.method = "zhang"
     return cal
 
 
 def rays_of(cal, fit):
     """The photo grid's rays the fit was scored on: (covered rays, covered pixels), (image rays, image pixels)."""
-    hull = np.asarray(cal.diagnostics["coverage_hull"]) if cal.diagnostics.get("coverage_hull") else None
+    hull = np.asarray(cal.diagnostics.coverage_hull) if cal.diagnostics.coverage_hull else None
     u, v, rays, covered = sample_grid(cal, covered=hull)
     _, _, _, image = sample_grid(cal, max_angle_deg=reach_deg(fit.name))
     pixels = np.column_stack([a.ravel() for a in np.meshgrid(u, v)])
@@ -198,7 +198,7 @@ def mrcal_check(cal, done, tmp_path) -> dict:
     check_against(cal, done.fit, lambda rays: mrcal_run.project(path, rays, tmp_path)["q"])
     got = mrcal_run.project(path, np.array([[0.0, 0.0, 1.0]]), tmp_path)
     # the covered region, as mrcal reads it: the corners' hull, closed
-    hull = np.asarray(cal.diagnostics["coverage_hull"])
+    hull = np.asarray(cal.diagnostics.coverage_hull)
     region = got["region"]
     assert np.array_equal(region[0], region[-1]) and len(region) == len(hull) + 1
     assert {tuple(np.round(x, 6)) for x in region} == {tuple(np.round(x, 6)) for x in hull}

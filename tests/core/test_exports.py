@@ -26,7 +26,7 @@ def cal_of(kind: str, method: str, settings: tuple = ()):
 def check_points(cal, fit, project) -> None:
     """``project(rays (N, 3)) -> (N, 2)`` by the other tool matches cal within the reported max error,
     over the region the fit covers (the corners' hull the calibration recorded)."""
-    hull = cal.diagnostics.get("coverage_hull")
+    hull = cal.diagnostics.coverage_hull
     u, v, rays, ok = sample_grid(cal, covered=np.asarray(hull) if hull else None)
     target = cal.project(rays[ok])
     err = np.linalg.norm(project(rays[ok]) - target, axis=1)

@@ -68,8 +68,8 @@ def test_every_method_calibrates_a_3d_object_as_its_faces_one_by_one(method):
     obs = cube_set("radial", 16)
     split = targets.cube().split(obs)
     solid, faces = calibrate(obs, method), calibrate(split, method)
-    assert np.isfinite(solid.metrics["rmse"])
-    assert solid.metrics["rmse"] <= 1.5 * faces.metrics["rmse"]
+    assert np.isfinite(solid.metrics.rmse)
+    assert solid.metrics.rmse <= 1.5 * faces.metrics.rmse
     np.testing.assert_allclose(solid.model.intrinsics[:2], faces.model.intrinsics[:2], rtol=0.02)
 
 
@@ -82,7 +82,7 @@ def test_one_board_moved_off_z_0_calibrates_as_the_board_itself():
                                                v.image_points, v.ids) for v in obs.views])
     a, b = calibrate(obs, "zhang"), calibrate(moved, "zhang")
     np.testing.assert_allclose(a.model.intrinsics, b.model.intrinsics, rtol=1e-6, atol=1e-6)
-    assert b.metrics["rmse"] == pytest.approx(a.metrics["rmse"], rel=1e-6)
+    assert b.metrics.rmse == pytest.approx(a.metrics.rmse, rel=1e-6)
 
 
 def test_a_view_whose_corners_lie_on_one_line_is_dropped_saying_why():

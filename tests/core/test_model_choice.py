@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from calib_core.evaluation.evaluate import validation_residuals
+from calib_core.fit_report import CandidateScore
 from calib_core.fitting.choice import Candidate, choose
 from calib_core.fitting.metrics import rmse
 from calib_core.pipeline import calibrate
@@ -14,8 +15,8 @@ from calib_core.pipeline import calibrate
 from ..simulated_lenses import around, fisheye_lens, views_of, webcam_lens
 
 
-def candidate(cal, name: str) -> dict:
-    return next(c for c in cal.diagnostics["model_choice"]["candidates"] if c["name"] == name)
+def candidate(cal, name: str) -> CandidateScore:
+    return next(c for c in cal.diagnostics.model_choice.candidates if c.name == name)
 
 
 @pytest.mark.slow
@@ -38,7 +39,7 @@ def test_past_180_degrees_a_kannala_brandt_lens_gets_no_field_it_does_not_need()
     when it was taken unasked): the choice keeps Kannala-Brandt alone."""
     train = around(16, seed=0, sigma=0.2)
     cal = calibrate(train, "auto")
-    assert "past the pinhole's reach" in cal.diagnostics["model_choice"]["how"]
+    assert "past the pinhole's reach" in cal.diagnostics.model_choice.how
     assert cal.settings["chosen"] == "fisheye" and cal.model.kind == "fisheye"
     holdout = around(12, seed=1, sigma=0.0)
     assert rmse(validation_residuals(cal, holdout)[0]) < 0.05
@@ -53,8 +54,8 @@ def test_a_bowed_board_is_not_mistaken_for_lens_distortion():
     the field."""
     train = views_of(webcam_lens, (640, 480), 12, seed=0, sigma=0.1, distance=450, spread=0.2, bend=0.5)
     cal = calibrate(train, "auto")
-    assert candidate(cal, "bspline")["validation_rmse"] > 1.05 * candidate(cal, "zhang")["validation_rmse"]
-    assert calibrate(train, "bspline").metrics["rmse"] < 0.95 * calibrate(train, "zhang").metrics["rmse"]
+    assert candidate(cal, "bspline").validation_rmse > 1.05 * candidate(cal, "zhang").validation_rmse
+    assert calibrate(train, "bspline").metrics.rmse < 0.95 * calibrate(train, "zhang").metrics.rmse
     assert cal.model.kind == "opencv"
     flat = views_of(webcam_lens, (640, 480), 10, seed=10, sigma=0.0, distance=450, spread=0.2)
     ours = rmse(validation_residuals(cal, flat)[0])

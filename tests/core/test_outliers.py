@@ -32,7 +32,7 @@ def test_slipped_corners_are_rejected_and_cost_nothing(method, kind):
     for view, corner, _ in SLIPS:
         assert corner in cal.views[view].outliers, (view, corner)
     # A 5-sigma test on 2 250 Gaussian corners flags almost no good one.
-    assert cal.diagnostics["excluded_points"]["outliers"] <= len(SLIPS) + 3
+    assert cal.diagnostics.excluded_points.outliers <= len(SLIPS) + 3
     reference = evaluate(calibrate(clean.train, method), clean.holdout)["rmse"]
     assert evaluate(cal, slipped.holdout)["rmse"] <= 1.05 * reference + 1e-3
 
@@ -42,6 +42,6 @@ def test_the_refit_without_them_starts_at_the_minimum():
     takes the final fit's Gauss-Newton trials, not damped steps that crawl
     along the field's flat valley (13 iterations against 3 on BabelCalib)."""
     cal = calibrate(sets("asymmetric")[1].train, "bspline", core="none")
-    solver = cal.diagnostics["solver"]
-    assert solver["status"] == "converged"
-    assert solver["iterations"] <= 5
+    solver = cal.diagnostics.solver
+    assert solver.status == "converged"
+    assert solver.iterations <= 5

@@ -92,7 +92,7 @@ def test_calibration_json_carries_the_camera_block():
     s = synthetic("radial")
     cal = calibrate(s.train, "zhang")
     doc = report_files(cal, s.train)["calibration.json"]
-    cam = Calibration.from_json(doc).diagnostics["camera"]
+    cam = Calibration.from_json(doc).diagnostics.camera
     assert cam["model"] == "OpenCV model, 5 coefficients (k1, k2, p1, p2, k3)"
     assert cam["chosen"] == "as asked (method zhang)" and cam["fitted_parameters"] == 9
     fx = next(p for p in cam["parameters"] if p["name"] == "fx")

@@ -14,6 +14,7 @@ import pytest
 
 from backend.cli import main as cli
 from calib_core import Calibration
+from calib_core.fit_report import Diagnostics
 from calib_core.models import FisheyeModel, OpenCVModel
 from calib_core.pipeline import calibrate
 from calib_core.products.rectify import covered_camera, fixed_camera, rectified_camera, undistort_maps
@@ -23,11 +24,11 @@ from ..conftest import synthetic
 GOPRO_ZHANG = Calibration(
     OpenCVModel([433.7254884, 432.29100541, 494.5056528, 380.05672999, 0.0],
                 [-0.23508216, 0.06178554, -0.00042355, 0.00030124, -0.0075505]),
-    (1000, 750), "zhang", diagnostics={"coverage_hull": [[64.58, 58.58], [944.12, 58.58], [944.12, 689.05], [64.58, 689.05]]})
+    (1000, 750), "zhang", diagnostics=Diagnostics(coverage_hull=[[64.58, 58.58], [944.12, 58.58], [944.12, 689.05], [64.58, 689.05]]))
 CHARUCO_FISHEYE = Calibration(
     FisheyeModel([458.68058508, 461.26962323, 317.87168607, 271.18819479, 0.0],
                  [0.64974082, -5.10419581, 35.81459822, -85.990675]),
-    (640, 480), "fisheye", diagnostics={"coverage_hull": [[182.81, 80.55], [455.48, 80.55], [455.48, 373.12], [182.81, 373.12]]})
+    (640, 480), "fisheye", diagnostics=Diagnostics(coverage_hull=[[182.81, 80.55], [455.48, 80.55], [455.48, 373.12], [182.81, 373.12]]))
 FOLDING = {"gopro-zhang": GOPRO_ZHANG, "charuco-fisheye": CHARUCO_FISHEYE}
 
 
@@ -102,7 +103,7 @@ def test_the_covered_crop_shows_only_the_corners_region(name):
     cal = FOLDING[name]
     camera = covered_camera(cal)
     _, src = sources(cal, camera)
-    hull = np.array(cal.diagnostics["coverage_hull"])
+    hull = np.array(cal.diagnostics.coverage_hull)
     lo, hi = hull.min(axis=0), hull.max(axis=0)
     assert (src >= lo - 0.5).all() and (src <= hi + 0.5).all()
     assert src[:, 0].max() - src[:, 0].min() > 0.9 * (hi - lo)[0] or src[:, 1].max() - src[:, 1].min() > 0.9 * (hi - lo)[1]

@@ -23,10 +23,10 @@ def test_gauss_newton_trials_reach_the_damped_minimum_in_fewer_iterations(monkey
 
     monkeypatch.setattr(bspline_method, "levenberg_marquardt", damped_only)
     damped = calibrate(train, "bspline", **settings)
-    a, b = with_trials.diagnostics["solver"], damped.diagnostics["solver"]
-    assert a["status"] == b["status"] == "converged"
-    assert abs(a["cost"] - b["cost"]) <= 1e-4 * b["cost"]
-    assert a["iterations"] < b["iterations"]
+    a, b = with_trials.diagnostics.solver, damped.diagnostics.solver
+    assert a.status == b.status == "converged"
+    assert abs(a.cost - b.cost) <= 1e-4 * b.cost
+    assert a.iterations < b.iterations
     # The same lens: held-out views, poses refit, see the same errors. (Rays in
     # the camera frame may differ by pixels: a common tilt of the poses against
     # the field's projective part is the valley the trials cut across.)
@@ -44,6 +44,6 @@ def test_a_large_set_takes_as_few_iterations_as_a_small_one():
 
     s = synth.generate("asymmetric", sigma=0.3, seed=2, n_views=80)
     cal = calibrate(s.train, "bspline", core="none", intervals=10, lambda_smooth=1.0, outlier_sigma=0)
-    solver = cal.diagnostics["solver"]
-    assert solver["status"] == "converged" and solver["iterations"] <= 20, solver
+    solver = cal.diagnostics.solver
+    assert solver.status == "converged" and solver.iterations <= 20, solver
     assert evaluate(cal, s.holdout)["rmse"] < 0.05

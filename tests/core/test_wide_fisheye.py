@@ -29,6 +29,6 @@ def test_the_default_beats_kannala_brandt_on_held_out_views(sets):
     kb = evaluate(calibrate(train, "fisheye"), test)
     ours_cal = calibrate(train)
     ours = evaluate(ours_cal, test)
-    assert ours_cal.diagnostics["excluded_points"]["outside_model"] == 0  # nothing lost past 90°
+    assert ours_cal.diagnostics.excluded_points.outside_model == 0  # nothing lost past 90°
     # mrcal's splined stereographic model, same corners: 0.45 px test rms (per axis).
     assert ours["rmse_axis"] < 0.40 and ours["rmse"] < kb["rmse"]

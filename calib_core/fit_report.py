@@ -1,0 +1,339 @@
+"""What a calibration records of its fit beside the model: the error figures
+(``metrics``) and the ``diagnostics`` other code reads (the solver's report,
+the points left out, the corners' hull, method auto's choice, a restart).
+
+Each is a small dataclass with ``to_json()``, its object in the calibration file
+(``metrics``: formats.md §2; ``diagnostics`` go beyond the contract: docs/python.md),
+and ``from_json()``, which names the field of a malformed one in a FormatError.
+``Calibration`` (``calibration.py``) holds them and reads and writes them.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import FormatError
+from .fitting.metrics import summary
+
+
+# ---- reading JSON values --------------------------------------------------------
+def _object(raw: Any, where: str) -> dict[str, Any]:
+    if not isinstance(raw, dict):
+        raise FormatError(f"{where}: expected an object, got {raw!r}")
+    return raw
+
+
+def _required(doc: dict[str, Any], key: str, where: str) -> Any:
+    if key not in doc:
+        raise FormatError(f"{where}: missing {key!r}")
+    return doc[key]
+
+
+def _float(raw: Any, where: str) -> float:
+    """A number, or null for a figure that could not be measured (NaN)."""
+    if raw is None:
+        return math.nan
+    if not isinstance(raw, (int, float)) or isinstance(raw, bool):
+        raise FormatError(f"{where}: expected a number or null, got {raw!r}")
+    return float(raw)
+
+
+def _optional_float(raw: Any, where: str) -> float | None:
+    return None if raw is None else _float(raw, where)
+
+
+def _int(raw: Any, where: str) -> int:
+    if not isinstance(raw, int) or isinstance(raw, bool) or raw < 0:
+        raise FormatError(f"{where}: expected a whole number ≥ 0, got {raw!r}")
+    return raw
+
+
+def _str(raw: Any, where: str) -> str:
+    if not isinstance(raw, str):
+        raise FormatError(f"{where}: expected a string, got {raw!r}")
+    return raw
+
+
+def _number_json(x: float) -> float | None:
+    """JSON has no NaN: null instead."""
+    return float(x) if math.isfinite(x) else None
+
+
+# ---- metrics ---------------------------------------------------------------------
+@dataclass(frozen=True)
+class FitMetrics:
+    """The fit's error over the inlier corners (px): per-point rmse (OpenCV's
+    figure), per-axis rmse (mrcal's), rmse over the image's central half and
+    outside it (``fitting.metrics.centre_mask``); NaN where no corner falls."""
+
+    rmse: float
+    rmse_axis: float
+    rmse_center: float
+    rmse_edge: float
+    n_points: int
+
+    def to_json(self) -> dict[str, Any]:
+        return {"rmse": _number_json(self.rmse), "rmse_axis": _number_json(self.rmse_axis),
+                "rmse_center": _number_json(self.rmse_center), "rmse_edge": _number_json(self.rmse_edge),
+                "n_points": self.n_points}
+
+    @classmethod
+    def of(cls, residuals: np.ndarray, image_points: np.ndarray, image_size) -> FitMetrics:
+        """The figures of residuals (N, 2) at observed pixels (N, 2), by ``fitting.metrics.summary``."""
+        s = summary(residuals, image_points, image_size)
+        return cls(s["rmse"], s["rmse_axis"], s["rmse_center"], s["rmse_edge"], int(s["n_points"]))
+
+    @classmethod
+    def from_json(cls, raw: Any) -> FitMetrics:
+        doc = _object(raw, "metrics")
+
+        def figure(key: str) -> float:
+            return _float(_required(doc, key, "metrics"), f"metrics.{key}")
+
+        return cls(figure("rmse"), figure("rmse_axis"), figure("rmse_center"), figure("rmse_edge"),
+                   _int(_required(doc, "n_points", "metrics"), "metrics.n_points"))
+
+
+# ---- diagnostics -----------------------------------------------------------------
+@dataclass(frozen=True)
+class SolverReport:
+    """How the final Levenberg–Marquardt run ended (``fitting.solve``) and what the whole calibration took."""
+
+    iterations: int
+    status: str  # "converged", "stalled", "max_iterations", ...
+    message: str
+    cost: float
+    n_unknowns: int  # model parameters and 6 per view
+    seconds: float
+
+    def to_json(self) -> dict[str, Any]:
+        return {"iterations": self.iterations, "status": self.status, "message": self.message,
+                "cost": _number_json(self.cost), "n_unknowns": self.n_unknowns, "seconds": _number_json(self.seconds)}
+
+    @classmethod
+    def from_json(cls, raw: Any) -> SolverReport:
+        w = "diagnostics.solver"
+        doc = _object(raw, w)
+        return cls(_int(_required(doc, "iterations", w), f"{w}.iterations"),
+                   _str(_required(doc, "status", w), f"{w}.status"),
+                   _str(doc.get("message", ""), f"{w}.message"),
+                   _float(doc.get("cost"), f"{w}.cost"),
+                   _int(_required(doc, "n_unknowns", w), f"{w}.n_unknowns"),
+                   _float(doc.get("seconds"), f"{w}.seconds"))
+
+
+@dataclass(frozen=True)
+class ExcludedPoints:
+    """Corners left out of the fit: robust outliers, and those the model cannot represent (and why)."""
+
+    outliers: int
+    outside_model: int
+    outside_model_reason: str = ""  # written when some are outside the model
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"outliers": self.outliers, "outside_model": self.outside_model}
+        if self.outside_model:
+            out["outside_model_reason"] = self.outside_model_reason
+        return out
+
+    @classmethod
+    def from_json(cls, raw: Any) -> ExcludedPoints:
+        w = "diagnostics.excluded_points"
+        doc = _object(raw, w)
+        return cls(_int(_required(doc, "outliers", w), f"{w}.outliers"),
+                   _int(_required(doc, "outside_model", w), f"{w}.outside_model"),
+                   _str(doc.get("outside_model_reason", ""), f"{w}.outside_model_reason"))
+
+
+@dataclass(frozen=True)
+class RestartFit:
+    """One of a restart's two fits: its rmse (px), focal lengths and iterations."""
+
+    rmse: float
+    fx: float
+    fy: float
+    iterations: int
+
+    def to_json(self) -> dict[str, Any]:
+        return {"rmse": _number_json(self.rmse), "fx": self.fx, "fy": self.fy, "iterations": self.iterations}
+
+    @classmethod
+    def from_json(cls, raw: Any, where: str) -> RestartFit:
+        doc = _object(raw, where)
+
+        def number(key: str) -> float:
+            return _float(_required(doc, key, where), f"{where}.{key}")
+
+        return cls(number("rmse"), number("fx"), number("fy"),
+                   _int(_required(doc, "iterations", where), f"{where}.iterations"))
+
+
+@dataclass(frozen=True)
+class Restart:
+    """A field fit that ended far from a parametric camera, fitted again from
+    that camera (``methods.bspline.wrong_camera``): why, both fits, the one kept,
+    and a warning when even the kept one is off."""
+
+    reason: str
+    first: RestartFit
+    restarted: RestartFit
+    kept: str  # "first" or "restarted"
+    warning: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"reason": self.reason, "first": self.first.to_json(),
+                               "restarted": self.restarted.to_json(), "kept": self.kept}
+        if self.warning:
+            out["warning"] = self.warning
+        return out
+
+    @classmethod
+    def from_json(cls, raw: Any) -> Restart:
+        w = "diagnostics.restart"
+        doc = _object(raw, w)
+        return cls(_str(_required(doc, "reason", w), f"{w}.reason"),
+                   RestartFit.from_json(_required(doc, "first", w), f"{w}.first"),
+                   RestartFit.from_json(_required(doc, "restarted", w), f"{w}.restarted"),
+                   _str(_required(doc, "kept", w), f"{w}.kept"), _str(doc.get("warning", ""), f"{w}.warning"))
+
+
+@dataclass(frozen=True)
+class CandidateScore:
+    """One candidate of a model choice as recorded: its validation scores (None where it was not validated)."""
+
+    name: str
+    label: str
+    chosen: bool
+    validation_rmse: float | None = None  # per axis (px), on views left out of its fit
+    validation_mse: float | None = None
+    standard_error_rmse: float | None = None  # the band within which it counts as good as the best
+    within_noise: bool | None = None
+    n_params: int | None = None
+    error: str = ""  # why it was not validated
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"name": self.name, "label": self.label, "chosen": self.chosen,
+                               "validation_rmse": self.validation_rmse, "validation_mse": self.validation_mse,
+                               "standard_error_rmse": self.standard_error_rmse, "within_noise": self.within_noise,
+                               "n_params": self.n_params}
+        if self.error:
+            out["error"] = self.error
+        return out
+
+    @classmethod
+    def from_json(cls, raw: Any, where: str) -> CandidateScore:
+        doc = _object(raw, where)
+        chosen, within = doc.get("chosen"), doc.get("within_noise")
+        if not isinstance(chosen, bool) or not (within is None or isinstance(within, bool)):
+            raise FormatError(f"{where}: expected chosen and within_noise as true/false")
+        n_params = doc.get("n_params")
+
+        def score(key: str) -> float | None:
+            return _optional_float(doc.get(key), f"{where}.{key}")
+
+        return cls(_str(_required(doc, "name", where), f"{where}.name"),
+                   _str(doc.get("label", ""), f"{where}.label"), chosen,
+                   score("validation_rmse"), score("validation_mse"), score("standard_error_rmse"), within,
+                   None if n_params is None else _int(n_params, f"{where}.n_params"),
+                   _str(doc.get("error", ""), f"{where}.error"))
+
+
+@dataclass(frozen=True)
+class ChoiceReport:
+    """Method auto's choice as recorded (``fitting.choice.ModelChoice.to_json``): the
+    model chosen, why in words, the rule, how the errors were measured, and every candidate's scores."""
+
+    chosen: str
+    summary: str
+    rule: str
+    how: str
+    n_views: int
+    n_points: int
+    candidates: tuple[CandidateScore, ...]
+
+    @property
+    def chosen_candidate(self) -> CandidateScore:
+        return next(c for c in self.candidates if c.chosen)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"chosen": self.chosen, "summary": self.summary, "rule": self.rule, "how": self.how,
+                "n_views": self.n_views, "n_points": self.n_points,
+                "candidates": [c.to_json() for c in self.candidates]}
+
+    @classmethod
+    def from_json(cls, raw: Any) -> ChoiceReport:
+        w = "diagnostics.model_choice"
+        doc = _object(raw, w)
+        rows = _required(doc, "candidates", w)
+        if not isinstance(rows, list) or sum(1 for c in rows if isinstance(c, dict) and c.get("chosen") is True) != 1:
+            raise FormatError(f"{w}.candidates: expected a list with exactly one chosen candidate")
+        return cls(_str(_required(doc, "chosen", w), f"{w}.chosen"), _str(doc.get("summary", ""), f"{w}.summary"),
+                   _str(doc.get("rule", ""), f"{w}.rule"), _str(doc.get("how", ""), f"{w}.how"),
+                   _int(doc.get("n_views", 0), f"{w}.n_views"), _int(doc.get("n_points", 0), f"{w}.n_points"),
+                   tuple(CandidateScore.from_json(c, f"{w}.candidates[{k}]") for k, c in enumerate(rows)))
+
+
+@dataclass
+class Diagnostics:
+    """The calibration's ``diagnostics``: typed where code other than their writer
+    reads them, and ``extra`` for what a method records of its own search
+    (``design``, ``initialisation``, ``domain``, ``smoothing_curve``,
+    ``grid_search``) and any key a reader does not know, kept as read.
+
+    ``camera`` is the report's parameters block (``evaluation.parameters.describe_camera``),
+    added after the fit by the CLI and the service; ``excluded_views`` the names the service's
+    user left out. Mutable: those two are set on a finished calibration."""
+
+    extra: dict[str, Any] = field(default_factory=dict)
+    restart: Restart | None = None
+    model_choice: ChoiceReport | None = None
+    solver: SolverReport | None = None
+    coverage_hull: list[list[float]] | None = None  # (M, 2) pixels: the convex hull of the corners used
+    excluded_points: ExcludedPoints | None = None
+    camera: dict[str, Any] | None = None
+    excluded_views: list[str] | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        """``extra`` first, then the typed parts in the order the pipeline writes them."""
+        out = dict(self.extra)
+        typed: dict[str, Any] = {
+            "restart": _json_of(self.restart), "model_choice": _json_of(self.model_choice),
+            "solver": _json_of(self.solver), "coverage_hull": self.coverage_hull,
+            "excluded_points": _json_of(self.excluded_points), "camera": self.camera,
+            "excluded_views": self.excluded_views}
+        out.update({k: v for k, v in typed.items() if v is not None})
+        return out
+
+    @classmethod
+    def from_json(cls, raw: Any) -> Diagnostics:
+        doc = dict(_object(raw, "diagnostics"))
+        restart, choice, solver = doc.pop("restart", None), doc.pop("model_choice", None), doc.pop("solver", None)
+        hull, excluded = doc.pop("coverage_hull", None), doc.pop("excluded_points", None)
+        camera, excluded_views = doc.pop("camera", None), doc.pop("excluded_views", None)
+        return cls(extra=doc,  # what is left: the method's own records
+                   restart=None if restart is None else Restart.from_json(restart),
+                   model_choice=None if choice is None else ChoiceReport.from_json(choice),
+                   solver=None if solver is None else SolverReport.from_json(solver),
+                   coverage_hull=None if hull is None else _hull(hull),
+                   excluded_points=None if excluded is None else ExcludedPoints.from_json(excluded),
+                   camera=None if camera is None else _object(camera, "diagnostics.camera"),
+                   excluded_views=None if excluded_views is None else _names(excluded_views))
+
+
+def _json_of(part: Restart | ChoiceReport | SolverReport | ExcludedPoints | None) -> dict[str, Any] | None:
+    return None if part is None else part.to_json()
+
+
+def _hull(raw: Any) -> list[list[float]]:
+    if not isinstance(raw, list) or not all(isinstance(p, list) and len(p) == 2 for p in raw):
+        raise FormatError("diagnostics.coverage_hull: expected a list of [x, y] pixels")
+    return [[_float(x, "diagnostics.coverage_hull"), _float(y, "diagnostics.coverage_hull")] for x, y in raw]
+
+
+def _names(raw: Any) -> list[str]:
+    if not isinstance(raw, list):
+        raise FormatError("diagnostics.excluded_views: expected a list of view names")
+    return [_str(n, "diagnostics.excluded_views") for n in raw]

@@ -89,13 +89,13 @@ def print_rig(rig) -> None:
     table(["camera", "model", "fx / fy", "cx, cy", "frames", "rmse alone [px]", "rmse in rig [px]",
            "rvec to reference [rad]", "tvec to reference"], rows)
     for cam in rig.cameras:
-        choice = cam.calibration.diagnostics.get("model_choice")
-        if choice:  # the score tables: freecal calibrate on that camera's observations prints them
-            print(f"camera {cam.name}: {choice['summary']}")
+        choice = cam.calibration.diagnostics.model_choice
+        if choice is not None:  # the score tables: freecal calibrate on that camera's observations prints them
+            print(f"camera {cam.name}: {choice.summary}")
     m, sv = rig.metrics, rig.diagnostics["solver"]
     held = "refined with the poses" if sv["models_refined"] else "held as calibrated alone"
-    print(f"rig: {m['n_points']} corners in {len(rig.frames)} frames, rmse {m['rmse']:.4f} px "
-          f"(per axis {m['rmse_axis']:.4f}), the cameras' models {held}; solver {sv['status']} after "
+    print(f"rig: {m.n_points} corners in {len(rig.frames)} frames, rmse {m.rmse:.4f} px "
+          f"(per axis {m.rmse_axis:.4f}), the cameras' models {held}; solver {sv['status']} after "
           f"{sv['iterations']} iterations")
     for w in rig.diagnostics.get("warnings", []):
         print(f"warning: {w}")

@@ -5,6 +5,6 @@ the reference camera and the board's pose at every frame are fitted to every
 camera's corners at once, each camera's model held."""
 from .calibrate import calibrate_rig
 from .frames import frame_of
-from .rig import Rig, RigCamera, RigFrame
+from .rig import Rig, RigCamera, RigFrame, RigMetrics
 
-__all__ = ["Rig", "RigCamera", "RigFrame", "calibrate_rig", "frame_of"]
+__all__ = ["Rig", "RigCamera", "RigFrame", "RigMetrics", "calibrate_rig", "frame_of"]

@@ -12,13 +12,14 @@ from scipy.spatial.transform import Rotation
 
 from ..calibration import Calibration
 from ..errors import DataError
+from ..fit_report import FitMetrics
 from ..fitting import metrics
 from ..methods.common import Progress, named, no_progress, scaled
 from ..observations import Observations
 from ..pipeline import calibrate
 from .bundle import Corners, adjust
 from .frames import frames_of
-from .rig import Rig, RigCamera, RigFrame
+from .rig import Rig, RigCamera, RigFrame, RigMetrics
 
 # A camera whose corners the rig fits this much worse than its own calibration
 # does is named in a warning: its frames are probably not simultaneous with the
@@ -169,7 +170,7 @@ def _rig(parts: list[_Camera], frame_names: list[str], corners: Corners, result,
     for c, p in enumerate(parts):
         mine = corners.camera == c
         res = result.residuals[mine]
-        alone = p.calibration.metrics["rmse"]
+        alone = p.calibration.metrics.rmse if p.calibration.metrics else float("nan")
         in_rig = metrics.rmse(res)
         report[p.name] = {"rmse_alone": alone, "rmse_in_rig": in_rig, "n_frames": len(p.frames),
                           "frames_shared_with_reference": len(set(p.frames) & set(parts[0].frames))}
@@ -187,8 +188,7 @@ def _rig(parts: list[_Camera], frame_names: list[str], corners: Corners, result,
     }
     if warnings:
         diagnostics["warnings"] = warnings
-    summary = {"rmse": metrics.rmse(result.residuals), "rmse_axis": metrics.rmse_axis(result.residuals),
-               "n_points": int(len(result.residuals))}
+    summary = RigMetrics(metrics.rmse(result.residuals), metrics.rmse_axis(result.residuals), len(result.residuals))
     return Rig(parts[0].name, cameras, frames, summary, diagnostics)
 
 
@@ -204,6 +204,6 @@ def _in_rig(part: _Camera, c: int, corners: Corners, result, reference: str) -> 
         views.append(dataclasses.replace(old, rvec=pose[:3], tvec=pose[3:], rmse=metrics.rmse(res),
                                          rmse_axis=metrics.rmse_axis(res)))
     mine = corners.camera == c
-    summary = metrics.summary(result.residuals[mine], corners.image_points[mine], cal.image_size)
+    summary = FitMetrics.of(result.residuals[mine], corners.image_points[mine], cal.image_size)
     return dataclasses.replace(cal, model=result.models[c], views=views, metrics=summary,
                                settings={**cal.settings, "rig_reference": reference})

@@ -43,12 +43,34 @@ class RigFrame:
         return np.concatenate([self.rvec, self.tvec])
 
 
+@dataclass(frozen=True)
+class RigMetrics:
+    """The rig's error over every camera's inlier corners (px)."""
+
+    rmse: float  # per point, OpenCV's figure
+    rmse_axis: float  # per axis, mrcal's
+    n_points: int
+
+    def to_json(self) -> dict[str, Any]:
+        return {"rmse": self.rmse, "rmse_axis": self.rmse_axis, "n_points": self.n_points}
+
+    @classmethod
+    def from_json(cls, raw: Any) -> RigMetrics:
+        if not isinstance(raw, dict):
+            raise FormatError("metrics: expected an object with rmse, rmse_axis, n_points")
+        rmse, rmse_axis, n = raw.get("rmse"), raw.get("rmse_axis"), raw.get("n_points")
+        if not (isinstance(rmse, (int, float)) and isinstance(rmse_axis, (int, float)) and isinstance(n, int)
+                and not any(isinstance(x, bool) for x in (rmse, rmse_axis, n)) and n >= 0):
+            raise FormatError(f"metrics: expected numbers rmse, rmse_axis and a whole n_points, got {raw!r}")
+        return cls(float(rmse), float(rmse_axis), n)
+
+
 @dataclass
 class Rig:
     reference: str
     cameras: list[RigCamera]
     frames: list[RigFrame]
-    metrics: dict[str, Any] = field(default_factory=dict)  # rmse, rmse_axis, n_points over every camera's corners
+    metrics: RigMetrics
     diagnostics: dict[str, Any] = field(default_factory=dict)  # the solver's report, each camera's errors
 
     def camera(self, name: str) -> RigCamera:
@@ -75,7 +97,7 @@ class Rig:
             "cameras": [{"name": c.name, "rvec": _floats(c.rvec), "tvec": _floats(c.tvec),
                          "calibration": c.calibration.to_json()} for c in self.cameras],
             "frames": [{"frame": f.frame, "rvec": _floats(f.rvec), "tvec": _floats(f.tvec)} for f in self.frames],
-            "metrics": json_safe(self.metrics),
+            "metrics": self.metrics.to_json(),
             "diagnostics": json_safe(self.diagnostics),
         }
 
@@ -111,11 +133,10 @@ class Rig:
             if not isinstance(f, dict) or not isinstance(f.get("frame"), str):
                 raise FormatError(f"{where}: expected an object with a \"frame\" string")
             frames.append(RigFrame(f["frame"], _vector(f.get("rvec"), f"{where}.rvec"), _vector(f.get("tvec"), f"{where}.tvec")))
-        metrics = doc.get("metrics", {})
         diagnostics = doc.get("diagnostics", {})
-        if not isinstance(metrics, dict) or not isinstance(diagnostics, dict):
-            raise FormatError("metrics and diagnostics: expected objects")
-        return cls(reference, cameras, frames, metrics, diagnostics)
+        if not isinstance(diagnostics, dict):
+            raise FormatError("diagnostics: expected an object")
+        return cls(reference, cameras, frames, RigMetrics.from_json(doc.get("metrics")), diagnostics)
 
     @classmethod
     def load(cls, path: str | Path) -> Rig:

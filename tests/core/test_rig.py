@@ -72,7 +72,7 @@ def test_a_three_camera_rig_is_recovered_through_a_chain_of_shared_frames():
     for c, cam in enumerate(rig.cameras):
         assert rotation_error(cam.rvec, TRUE_EXTRINSICS[c, :3]) < 6e-3  # radians: what a few px of principal point allow
         assert np.linalg.norm(cam.tvec - TRUE_EXTRINSICS[c, 3:]) < 3.0  # mm, of a 150-300 mm baseline
-    assert rig.metrics["rmse_axis"] == pytest.approx(0.2, rel=0.15)  # the corners' noise
+    assert rig.metrics.rmse_axis == pytest.approx(0.2, rel=0.15)  # the corners' noise
     assert [f.frame for f in rig.frames] == [f"{k:03d}" for k in range(24)]
     assert "warnings" not in rig.diagnostics
 
@@ -121,9 +121,9 @@ def test_stereo_pair_agrees_with_opencv_stereo_calibrate():
     cam = rig.camera("right")
     assert rotation_error(cam.rvec, cv2.Rodrigues(r)[0].ravel()) < 1e-5
     assert np.allclose(cam.tvec, t.ravel(), atol=1e-4)  # squares of 1 unit; baseline 3.3
-    assert rig.metrics["rmse"] == pytest.approx(rms, rel=1e-4)
+    assert rig.metrics.rmse == pytest.approx(rms, rel=1e-4)
     joint = calibrate_rig(cameras, "zhang", outlier_sigma=0)  # the models refined with the rig
-    assert joint.metrics["rmse"] < rig.metrics["rmse"]
+    assert joint.metrics.rmse < rig.metrics.rmse
     assert joint.diagnostics["solver"]["models_refined"] and not rig.diagnostics["solver"]["models_refined"]
 
 

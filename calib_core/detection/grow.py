@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import corner_refine, saddle
-from .image_circle import distance_to_unlit
+from .image_circle import UnlitDistance
 
 MAX_MOVE = 0.4         # of a square: how far cornerSubPix may take a prediction
 MAX_WOBBLE = 0.5       # px between refinements with windows one px apart (0.25: 326 fewer BabelCalib corners)
@@ -63,7 +63,7 @@ class Grown:
 
 
 def grow_board(gray: np.ndarray, ids: np.ndarray, pts: np.ndarray, cols: int, rows: int,
-               unlit: np.ndarray | None = None, after_growth=None) -> Grown:
+               unlit: np.ndarray | UnlitDistance | None = None, after_growth=None) -> Grown:
     """The given corners (ids (N,), pixels (N, 2) on a cols × rows board) checked, and grown
     over the visible board. Returned unchanged if they do not read as a checker lattice.
 
@@ -71,7 +71,7 @@ def grow_board(gray: np.ndarray, ids: np.ndarray, pts: np.ndarray, cols: int, ro
     (``model_guided``); growth then resumes from them. ``Grown.after_growth_added``
     counts what that hook and the growth it enabled added."""
     lat = Lattice.of(ids, pts, cols, rows)
-    unlit = distance_to_unlit(gray) if unlit is None else unlit
+    unlit = UnlitDistance(gray) if unlit is None else unlit
     seed_ok, flip = _seed_check(gray, lat)
     if seed_ok is None:
         return Grown(ids, pts, 0, 0)
@@ -101,7 +101,7 @@ def _saddle_polish(gray: np.ndarray, lat: Lattice) -> np.ndarray:
     i, j = np.nonzero(lat.known)
     e_col, e_row = lattice_steps(lat.p)
     half = corner_refine.half_window(corner_refine.nearest_corner(e_col[i, j], e_row[i, j]))
-    fitted, det = corner_refine.saddle_fit(corner_refine.smoothed(gray), lat.p[i, j], half)
+    fitted, det = corner_refine.saddle_points(gray, lat.p[i, j], half)
     spacing = corner_refine.nearest_corner(e_col[i, j], e_row[i, j])
     ok = (det < 0) & (np.linalg.norm(fitted - lat.p[i, j], axis=1) <= corner_refine.MAX_SADDLE_SHIFT)
     ok &= corner_refine.window_holds_one_corner(np.nan_to_num(spacing, nan=np.inf))
@@ -109,7 +109,7 @@ def _saddle_polish(gray: np.ndarray, lat: Lattice) -> np.ndarray:
     return lat.known
 
 
-def _grow(gray: np.ndarray, lat: Lattice, unlit: np.ndarray) -> None:
+def _grow(gray: np.ndarray, lat: Lattice, unlit: np.ndarray | UnlitDistance) -> None:
     """Grow front by front until no candidate is confirmed."""
     tried = np.zeros(lat.known.shape, int)
     for _ in range(MAX_ROUNDS):
@@ -278,11 +278,13 @@ def _within_board(lat: Lattice, ci: np.ndarray, cj: np.ndarray, ok: np.ndarray) 
     return keep
 
 
-def _grow_front(gray: np.ndarray, lat: Lattice, tried: np.ndarray, unlit: np.ndarray) -> bool:
+def _grow_front(gray: np.ndarray, lat: Lattice, tried: np.ndarray, unlit: np.ndarray | UnlitDistance) -> bool:
     """Try every position next to the lattice (one front); True if any corner was added."""
     known = lat.known
     n_nb = sum(shift(known.astype(float)[..., None], dr, dc)[..., 0] == 1 for dr, dc in _AXES)
     cand = ~known & (n_nb > tried) & lat.box_allows()
+    if not cand.any():  # a whole board, seen whole: nothing to predict
+        return False
     pred = predict(lat.p)
     e_col, e_row = lattice_steps(lat.p)
     cand &= np.isfinite(pred[..., 0]) & np.isfinite(e_col[..., 0]) & np.isfinite(e_row[..., 0])
@@ -291,7 +293,7 @@ def _grow_front(gray: np.ndarray, lat: Lattice, tried: np.ndarray, unlit: np.nda
 
 
 def confirm(gray: np.ndarray, lat: Lattice, cand: np.ndarray, guess: np.ndarray, e_col: np.ndarray,
-            e_row: np.ndarray, unlit: np.ndarray) -> int:
+            e_row: np.ndarray, unlit: np.ndarray | UnlitDistance) -> int:
     """Refine the guesses (R, C, 2) at candidate positions cand (R, C) with local steps e_col,
     e_row (R, C, 2); add those confirmed as corners to the lattice. Returns how many."""
     if not cand.any():

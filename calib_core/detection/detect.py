@@ -1,10 +1,11 @@
 """From photos to corners: detect a board in many images, on all cores.
 
 ``detect_images`` is the public entry (the CLI and the web service call it).
-Each image is detected in a worker process (``detect_image.detect_file``);
-if a process pool cannot be had (sandbox, frozen app, a crashed worker) the
-rest run in this process. Every image gets a report, used or rejected, with
-the reason in plain words.
+Each image is detected on its own (``detect_image.detect_file``), on threads
+of this process, or in worker processes for long sets; if a process pool
+cannot be had (sandbox, frozen app, a crashed worker) the rest run on the
+threads. Every image gets a report, used or rejected, with the reason in
+plain words.
 """
 from __future__ import annotations
 
@@ -81,10 +82,11 @@ def image_paths(items: Iterable[str | Path]) -> list[Path]:
 
 
 # A pool's workers come from a fresh interpreter that imports OpenCV and the
-# detector (0.7 s of CPU on these machines) before the first image: a set this
-# process would detect faster alone than that start (26 VGA images: 0.45 s here,
-# 0.9-1.4 s through a pool of 2 that had to start first) is detected here.
-POOL_PAYS_AFTER = 1.5  # seconds of detection left after the first image
+# detector (0.7 s of CPU on these machines) before the first image, where a thread
+# starts at once: a set is detected on threads of this process unless it is long
+# enough for processes to pay (the Python of growth and checks holds the GIL, about
+# a third of an image's time on OpenCV's 9x6 photos; OpenCV's detectors release it).
+POOL_PAYS_AFTER = 1.5  # seconds of CPU left after the first image
 
 
 def detect_images(paths, board: BoardSpec | Target, progress: Callable[[int, int], None] | None = None,
@@ -131,8 +133,9 @@ def _unique_names(files: list[Path]) -> list[str]:
 
 
 def _run_all(files, names, board, progress, workers, model=None) -> list[ImageResult]:
-    """Every image's result, in order: on a pool of ``workers`` processes when
-    the set is large enough to pay for starting one (see POOL_PAYS_AFTER)."""
+    """Every image's result, in order, on ``workers`` cores (default: all): on threads of this
+    process, or on a pool of processes when the set is long enough to pay for starting one
+    (see POOL_PAYS_AFTER). Images a pool could not detect are detected on the threads."""
     total = len(files)
     n = workers if workers is not None else (os.cpu_count() or 1)
     n = max(1, min(n, total))
@@ -146,26 +149,47 @@ def _run_all(files, names, board, progress, workers, model=None) -> list[ImageRe
         if progress:
             progress(done, total)
 
-    start = time.perf_counter()
-    fn, *job = _job(files[0], board, names[0], model)
-    finished(0, fn(*job))
-    alone = (time.perf_counter() - start) * (total - 1)  # the rest, detected here
-    if n > 1 and alone > POOL_PAYS_AFTER:
-        try:
-            with cf.ProcessPoolExecutor(n, mp_context=_context(), initializer=_init_worker) as pool:
-                futures = {pool.submit(*_job(files[k], board, names[k], model)): k for k in range(1, total)}
-                for fut in cf.as_completed(futures):
-                    try:
-                        finished(futures[fut], fut.result())
-                    except Exception:  # a dead worker: this image is retried in-process below
-                        continue
-        except (OSError, PermissionError, NotImplementedError, cf.process.BrokenProcessPool, RuntimeError):
-            pass  # no pool here (sandbox, no /dev/shm...): fall back to this process
-    for k in range(total):
-        if results[k] is None:
-            fn, *job = _job(files[k], board, names[k], model)
-            finished(k, fn(*job))
+    jobs = [_job(files[k], board, names[k], model) for k in range(total)]
+    # CPU time, not wall: on a busy machine the wall clock would start a pool for a set
+    # this process detects faster than the pool's start.
+    start = time.process_time()
+    finished(0, _call(jobs[0]))
+    left = (time.process_time() - start) * (total - 1)
+    if n > 1 and left > POOL_PAYS_AFTER:
+        _on_processes(jobs, [k for k in range(total) if results[k] is None], n, finished)
+    _on_threads(jobs, [k for k in range(total) if results[k] is None], n, finished)
     return results  # type: ignore[return-value]
+
+
+def _call(job: tuple) -> ImageResult:
+    fn, *args = job
+    return fn(*args)
+
+
+def _on_threads(jobs: list[tuple], todo: list[int], n: int, finished: Callable[[int, ImageResult], None]) -> None:
+    """Jobs ``todo`` on n threads of this process, each reported by finished(k, result) in this thread."""
+    if n == 1 or len(todo) < 2:
+        for k in todo:
+            finished(k, _call(jobs[k]))
+        return
+    with cf.ThreadPoolExecutor(n, thread_name_prefix="freecal-detect") as pool:
+        futures = {pool.submit(_call, jobs[k]): k for k in todo}
+        for fut in cf.as_completed(futures):
+            finished(futures[fut], fut.result())
+
+
+def _on_processes(jobs: list[tuple], todo: list[int], n: int, finished: Callable[[int, ImageResult], None]) -> None:
+    """Jobs ``todo`` on a pool of n processes; those a dead worker took with it are left undone."""
+    try:
+        with cf.ProcessPoolExecutor(n, mp_context=_context(), initializer=_init_worker) as pool:
+            futures = {pool.submit(*jobs[k]): k for k in todo}
+            for fut in cf.as_completed(futures):
+                try:
+                    finished(futures[fut], fut.result())
+                except Exception:  # a dead worker: this image is retried on a thread
+                    continue
+    except (OSError, PermissionError, NotImplementedError, cf.process.BrokenProcessPool, RuntimeError):
+        pass  # no pool here (sandbox, no /dev/shm...): the threads take the rest
 
 
 def _job(path: Path, board: BoardSpec | Target, name: str, model) -> tuple:

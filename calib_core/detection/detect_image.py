@@ -1,10 +1,10 @@
 """Board corners in one image: decode, find, refine, judge. Never raises.
 
-Runs inside worker processes, so it takes a path and returns plain data.
+Runs on worker threads or in worker processes, so it takes a path and returns plain data.
 Chessboards: OpenCV's classic detector on the full pattern first (fast), then
-the sector-based one, then ``findChessboardCornersSBWithMeta`` with
-``CALIB_CB_LARGER`` from a small seed, which grows over whatever part of the
-board is visible (partial boards). ChArUco: ``cv2.aruco.CharucoDetector``,
+``findChessboardCornersSBWithMeta`` with ``CALIB_CB_LARGER`` from a small seed,
+which grows over whatever part of the board is visible (partial boards), then
+the sector-based one on the full pattern. ChArUco: ``cv2.aruco.CharucoDetector``,
 whose ids are absolute, so partial boards come naturally; AprilGrid: its tags'
 corners (``aprilgrid.py``). Markers are found once per image and dictionary
 (``markers.py``), so several boards of one image share them (``targets.py``).
@@ -203,7 +203,10 @@ def _chessboard(gray: np.ndarray, board: BoardSpec, classic_first: bool = True):
     # The classic detector first: on whole boards it is ~100x faster than the sector-based
     # one, and after the final cornerSubPix (detect_gray) as accurate (rendered 9x6 views,
     # exact corners: median 0.037 px either way). The sector-based one then takes the
-    # boards it misses (blur, strong distortion), and grows partial boards.
+    # boards it misses (blur, strong distortion), grown from a small seed (partial boards,
+    # and whole ones: a seed grows over all of a board the whole pattern misses). The whole
+    # pattern comes last: on the 97 photos of the real and rendered sets it found no board
+    # where the classic one failed, at 0.4-2 s a photo, and the seeds found one in each.
     grid = None
     ok, corners = cv2.findChessboardCorners(gray, (cols, rows), flags=CLASSIC_FLAGS) if classic_first else (False, None)
     if ok and corners is not None:
@@ -212,11 +215,11 @@ def _chessboard(gray: np.ndarray, board: BoardSpec, classic_first: bool = True):
         corners = cv2.cornerSubPix(gray, corners.astype(np.float32), (half, half), (-1, -1), SUBPIX)
         grid = corners.reshape(rows, cols, 2)
     if grid is None:
+        grid = _grown_grid(gray, cols, rows)
+    if grid is None:
         ok, corners, meta = cv2.findChessboardCornersSBWithMeta(gray, (cols, rows), SB_FLAGS)
         if ok and meta is not None and meta.size == corners.shape[0]:
             grid = corners.reshape(*meta.shape, 2)
-    if grid is None:
-        grid = _grown_grid(gray, cols, rows)
     if grid is None:
         return None, None, None, "board not found"
     placed = place_grid(grid.astype(np.float64), cols, rows, gray)

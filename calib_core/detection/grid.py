@@ -65,12 +65,17 @@ def cell_brightness_sign(grid: np.ndarray, gray: np.ndarray) -> int:
     return 0 if abs(d) < 8 else (1 if d > 0 else -1)
 
 
-def _sample(gray: np.ndarray, grid: np.ndarray, s: float, t: float) -> np.ndarray:
-    """Grey levels (h-1, w-1) at cell coordinates (s along a row, t down a column) of every
-    cell of grid (h, w, 2), bilinear between the cell's four corners."""
+def _samples(gray: np.ndarray, grid: np.ndarray, st: list[tuple[float, float]]) -> np.ndarray:
+    """Grey levels (len(st), h-1, w-1) at cell coordinates st [(s along a row, t down a column), ...]
+    of every cell of grid (h, w, 2), bilinear between the cell's four corners; in one remap
+    (one per (s, t) cost more than the sampling)."""
+    s, t = (np.array([v[k] for v in st])[:, None, None, None] for k in (0, 1))
     p = ((1 - s) * (1 - t) * grid[:-1, :-1] + s * (1 - t) * grid[:-1, 1:]
          + (1 - s) * t * grid[1:, :-1] + s * t * grid[1:, 1:]).astype(np.float32)
-    return cv2.remap(gray, p[..., 0], p[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
+    n, h, w = p.shape[:3]
+    m = p.reshape(n * h, w, 2)
+    vals = cv2.remap(gray, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return vals.reshape(n, h, w).astype(np.float64)
 
 
 def gap_strides(grid: np.ndarray, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -85,7 +90,8 @@ def gap_strides(grid: np.ndarray, gray: np.ndarray) -> tuple[np.ndarray, np.ndar
     if h < 2 or w < 2:
         return ones
     fractions = (0.2, 0.25, 0.5, 0.75, 0.8)
-    q = {(s, t): _sample(gray, grid, s, t) for s in fractions for t in fractions}
+    st = [(s, t) for s in fractions for t in fractions]
+    q = dict(zip(st, _samples(gray, grid, st), strict=True))
     allv = np.concatenate([v.ravel() for v in q.values()])
     contrast = np.percentile(allv, 90) - np.percentile(allv, 10)
     if contrast < 16:
@@ -118,7 +124,7 @@ def lattice_score(grid: np.ndarray, gray: np.ndarray) -> float:
     h, w = grid.shape[:2]
     if h < 2 or w < 2:
         return 0.0
-    q = np.stack([_sample(gray, grid, s, t) for s in (0.25, 0.75) for t in (0.25, 0.75)])  # (4, h-1, w-1)
+    q = _samples(gray, grid, [(s, t) for s in (0.25, 0.75) for t in (0.25, 0.75)])  # (4, h-1, w-1)
     lo, hi = np.percentile(q, 10), np.percentile(q, 90)
     if hi - lo < 16:
         return 0.0

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import corner_refine, saddle
-from .image_circle import distance_to_unlit
+from .image_circle import UnlitDistance
 
 MAX_MOVE = 0.4         # of a square: how far cornerSubPix may take a prediction
 MAX_WOBBLE = 0.5       # px between refinements with windows one px apart (0.25: 326 fewer BabelCalib corners)
@@ -63,7 +63,7 @@ class Grown:
 
 
 def grow_board(gray: np.ndarray, ids: np.ndarray, pts: np.ndarray, cols: int, rows: int,
-               unlit: np.ndarray | None = None, after_growth=None) -> Grown:
+               unlit: np.ndarray | UnlitDistance | None = None, after_growth=None) -> Grown:
     """The given corners (ids (N,), pixels (N, 2) on a cols × rows board) checked, and grown
     over the visible board. Returned unchanged if they do not read as a checker lattice.
 
@@ -71,7 +71,7 @@ def grow_board(gray: np.ndarray, ids: np.ndarray, pts: np.ndarray, cols: int, ro
     (``model_guided``); growth then resumes from them. ``Grown.after_growth_added``
     counts what that hook and the growth it enabled added."""
     lat = Lattice.of(ids, pts, cols, rows)
-    unlit = distance_to_unlit(gray) if unlit is None else unlit
+    unlit = UnlitDistance(gray) if unlit is None else unlit
     seed_ok, flip = _seed_check(gray, lat)
     if seed_ok is None:
         return Grown(ids, pts, 0, 0)
@@ -101,7 +101,7 @@ def _saddle_polish(gray: np.ndarray, lat: Lattice) -> np.ndarray:
     i, j = np.nonzero(lat.known)
     e_col, e_row = lattice_steps(lat.p)
     half = corner_refine.half_window(corner_refine.nearest_corner(e_col[i, j], e_row[i, j]))
-    fitted, det = corner_refine.saddle_fit(corner_refine.smoothed(gray), lat.p[i, j], half)
+    fitted, det = corner_refine.saddle_points(gray, lat.p[i, j], half)
     spacing = corner_refine.nearest_corner(e_col[i, j], e_row[i, j])
     ok = (det < 0) & (np.linalg.norm(fitted - lat.p[i, j], axis=1) <= corner_refine.MAX_SADDLE_SHIFT)
     ok &= corner_refine.window_holds_one_corner(np.nan_to_num(spacing, nan=np.inf))
@@ -109,7 +109,7 @@ def _saddle_polish(gray: np.ndarray, lat: Lattice) -> np.ndarray:
     return lat.known
 
 
-def _grow(gray: np.ndarray, lat: Lattice, unlit: np.ndarray) -> None:
+def _grow(gray: np.ndarray, lat: Lattice, unlit: np.ndarray | UnlitDistance) -> None:
     """Grow front by front until no candidate is confirmed."""
     tried = np.zeros(lat.known.shape, int)
     for _ in range(MAX_ROUNDS):
@@ -171,17 +171,31 @@ class Lattice:
 
 def shift(a: np.ndarray, dr: int, dc: int) -> np.ndarray:
     """out[i, j] = a[i - dr, j - dc], NaN where that falls outside."""
-    out = np.full_like(a, np.nan)
-    R, C = a.shape[:2]
-    out[max(dr, 0):R + min(dr, 0), max(dc, 0):C + min(dc, 0)] = a[max(-dr, 0):R - max(dr, 0), max(-dc, 0):C - max(dc, 0)]
-    return out
+    return Shifted(a, max(abs(dr), abs(dc)))(dr, dc)
+
+
+class Shifted:
+    """``shift(a, dr, dc)`` for every |dr|, |dc| <= reach, as views of one NaN-padded copy of a:
+    the lattice arithmetic takes dozens of shifts of a small array, and a copy each cost more
+    than the arithmetic."""
+
+    def __init__(self, a: np.ndarray, reach: int):
+        R, C = a.shape[:2]
+        self.pad = np.full((R + 2 * reach, C + 2 * reach) + a.shape[2:], np.nan)
+        self.pad[reach:reach + R, reach:reach + C] = a
+        self.reach, self.R, self.C = reach, R, C
+
+    def __call__(self, dr: int, dc: int) -> np.ndarray:
+        r0, c0 = self.reach - dr, self.reach - dc
+        return self.pad[r0:r0 + self.R, c0:c0 + self.C]
 
 
 def _nanmean(stack: list[np.ndarray]) -> np.ndarray:
     s = np.stack(stack)
-    n = np.isfinite(s).sum(0)
+    finite = np.isfinite(s)
+    n = finite.sum(0)
     with np.errstate(invalid="ignore"):
-        return np.where(n > 0, np.nansum(s, 0) / np.maximum(n, 1), np.nan)
+        return np.where(n > 0, np.where(finite, s, 0.0).sum(0) / np.maximum(n, 1), np.nan)
 
 
 _AXES = ((0, 1), (0, -1), (1, 0), (-1, 0))
@@ -192,19 +206,20 @@ def predict(p: np.ndarray) -> np.ndarray:
     none can): between two neighbours on a line (a hole, or a row a detector skipped),
     else quadratic extrapolation along rows/columns, else linear, else the nearest cell's
     parallelogram."""
+    at = Shifted(p, 3)
     between, quad, lin, cell = [], [], [], []
     for dr, dc in ((0, 1), (1, 0)):
-        a1, b1 = shift(p, dr, dc), shift(p, -dr, -dc)
-        a3, b3 = shift(p, 3 * dr, 3 * dc), shift(p, -3 * dr, -3 * dc)
+        a1, b1 = at(dr, dc), at(-dr, -dc)
+        a3, b3 = at(3 * dr, 3 * dc), at(-3 * dr, -3 * dc)
         cubic = (9 * (a1 + b1) - (a3 + b3)) / 16   # follows the bending where four are known
         between.append(np.where(np.isfinite(cubic), cubic, 0.5 * (a1 + b1)))
     for dr, dc in _AXES:
-        p1, p2, p3 = shift(p, dr, dc), shift(p, 2 * dr, 2 * dc), shift(p, 3 * dr, 3 * dc)
+        p1, p2, p3 = at(dr, dc), at(2 * dr, 2 * dc), at(3 * dr, 3 * dc)
         quad.append(3 * p1 - 3 * p2 + p3)
         lin.append(2 * p1 - p2)
     for sr in (1, -1):
         for sc in (1, -1):
-            cell.append(shift(p, sr, 0) + shift(p, 0, sc) - shift(p, sr, sc))
+            cell.append(at(sr, 0) + at(0, sc) - at(sr, sc))
     out = _nanmean(between)
     for tier in (quad, lin, cell):
         out = np.where(np.isfinite(out), out, _nanmean(tier))
@@ -214,15 +229,17 @@ def predict(p: np.ndarray) -> np.ndarray:
 def lattice_steps(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Local steps to the next column and the next row (R, C, 2) each, at known corners (the
     mean of the forward and backward differences) and, one step out, at their neighbours."""
-    e_col = _nanmean([shift(p, 0, -1) - p, p - shift(p, 0, 1)])
-    e_row = _nanmean([shift(p, -1, 0) - p, p - shift(p, 1, 0)])
+    at = Shifted(p, 2)
+    e_col = _nanmean([at(0, -1) - p, p - at(0, 1)])
+    e_row = _nanmean([at(-1, 0) - p, p - at(1, 0)])
     # A grid that kept every other board line (grid.expand) has no neighbour one step away
     # across the skipped lines: half the step to the one two away then.
-    e_col = np.where(np.isfinite(e_col), e_col, 0.5 * _nanmean([shift(p, 0, -2) - p, p - shift(p, 0, 2)]))
-    e_row = np.where(np.isfinite(e_row), e_row, 0.5 * _nanmean([shift(p, -2, 0) - p, p - shift(p, 2, 0)]))
+    e_col = np.where(np.isfinite(e_col), e_col, 0.5 * _nanmean([at(0, -2) - p, p - at(0, 2)]))
+    e_row = np.where(np.isfinite(e_row), e_row, 0.5 * _nanmean([at(-2, 0) - p, p - at(2, 0)]))
     spread = []
     for e in (e_col, e_row):
-        around = _nanmean([shift(e, dr, dc) for dr, dc in _AXES])
+        e_at = Shifted(e, 1)
+        around = _nanmean([e_at(dr, dc) for dr, dc in _AXES])
         spread.append(np.where(np.isfinite(e), e, around))
     return spread[0], spread[1]
 
@@ -238,7 +255,8 @@ def _drop_inconsistent(lat: Lattice, rounds: int = 3) -> int:
         e_col, e_row = lattice_steps(lat.p)
         surprise = np.linalg.norm(predict(lat.p) - lat.p, axis=-1) / corner_refine.nearest_corner(e_col, e_row)
         surprise = np.where(np.isfinite(surprise), surprise, 0.0)
-        around = np.max([shift(surprise[..., None], dr, dc)[..., 0] for dr, dc in _AXES], axis=0)
+        s_at = Shifted(surprise, 1)
+        around = np.max([s_at(dr, dc) for dr, dc in _AXES], axis=0)
         bad = (surprise > MAX_SURPRISE) & (surprise >= np.nan_to_num(around))
         if not bad.any():
             break
@@ -255,7 +273,8 @@ def _seed_check(gray: np.ndarray, lat: Lattice) -> tuple[np.ndarray | None, int]
         return None, 0
     spacing = corner_refine.nearest_corner(e_col[k], e_row[k])
     even, half = lat.even()[k], corner_refine.half_window(spacing)
-    tries = [(saddle.is_corner(gray, lat.p[k], e_col[k], e_row[k], even ^ bool(flip), half), flip) for flip in (0, 1)]
+    reading = saddle.CornerReading.of(gray, lat.p[k], e_col[k], e_row[k], half)
+    tries = [(reading.is_corner(even ^ bool(flip)), flip) for flip in (0, 1)]
     ok, flip = max(tries, key=lambda t: t[0].mean())  # the first on a tie
     if ok.mean() < MIN_SEED_AGREEMENT:
         return None, 0
@@ -278,11 +297,14 @@ def _within_board(lat: Lattice, ci: np.ndarray, cj: np.ndarray, ok: np.ndarray) 
     return keep
 
 
-def _grow_front(gray: np.ndarray, lat: Lattice, tried: np.ndarray, unlit: np.ndarray) -> bool:
+def _grow_front(gray: np.ndarray, lat: Lattice, tried: np.ndarray, unlit: np.ndarray | UnlitDistance) -> bool:
     """Try every position next to the lattice (one front); True if any corner was added."""
     known = lat.known
-    n_nb = sum(shift(known.astype(float)[..., None], dr, dc)[..., 0] == 1 for dr, dc in _AXES)
+    k_at = Shifted(known.astype(float), 1)
+    n_nb = sum(k_at(dr, dc) == 1 for dr, dc in _AXES)
     cand = ~known & (n_nb > tried) & lat.box_allows()
+    if not cand.any():  # a whole board, seen whole: nothing to predict
+        return False
     pred = predict(lat.p)
     e_col, e_row = lattice_steps(lat.p)
     cand &= np.isfinite(pred[..., 0]) & np.isfinite(e_col[..., 0]) & np.isfinite(e_row[..., 0])
@@ -291,7 +313,7 @@ def _grow_front(gray: np.ndarray, lat: Lattice, tried: np.ndarray, unlit: np.nda
 
 
 def confirm(gray: np.ndarray, lat: Lattice, cand: np.ndarray, guess: np.ndarray, e_col: np.ndarray,
-            e_row: np.ndarray, unlit: np.ndarray) -> int:
+            e_row: np.ndarray, unlit: np.ndarray | UnlitDistance) -> int:
     """Refine the guesses (R, C, 2) at candidate positions cand (R, C) with local steps e_col,
     e_row (R, C, 2); add those confirmed as corners to the lattice. Returns how many."""
     if not cand.any():

@@ -29,10 +29,27 @@ def distance_to_unlit(gray: np.ndarray) -> np.ndarray:
     dark = (cv2.GaussianBlur(gray, (0, 0), BLUR_SIGMA) < UNLIT).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(dark, connectivity=8)
     border = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
-    void = np.isin(labels, [k for k in border if k > 0 and stats[k, cv2.CC_STAT_AREA] >= MIN_SHARE * h * w])
-    if not void.any():
+    is_void = np.zeros(n, bool)   # per label: a lookup, not a search of every pixel's label
+    is_void[[k for k in border if k > 0 and stats[k, cv2.CC_STAT_AREA] >= MIN_SHARE * h * w]] = True
+    if not is_void.any():
         return np.full((h, w), 1e9, np.float32)
-    return cv2.distanceTransform((~void).astype(np.uint8), cv2.DIST_L2, 5)
+    lit = (~is_void[labels]).astype(np.uint8)
+    return cv2.distanceTransform(lit, cv2.DIST_L2, 5)
+
+
+class UnlitDistance:
+    """``distance_to_unlit(gray)``, computed at its first lookup (``self[y, x]``): most
+    grids never look (a board seen whole has no corner left to confirm), and the map costs
+    more than the rest of their checks."""
+
+    def __init__(self, gray: np.ndarray):
+        self._gray = gray
+        self._map: np.ndarray | None = None
+
+    def __getitem__(self, index):
+        if self._map is None:
+            self._map = distance_to_unlit(self._gray)
+        return self._map[index]
 
 
 def _border_lit(gray: np.ndarray) -> bool:

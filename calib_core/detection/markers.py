@@ -10,7 +10,7 @@ mirrored): the reason says so.
 """
 from __future__ import annotations
 
-import functools
+import threading
 
 import cv2
 import numpy as np
@@ -22,12 +22,20 @@ FAMILY = {"DICT_4X4": "DICT_4X4_1000", "DICT_5X5": "DICT_5X5_1000", "DICT_6X6": 
           "DICT_7X7": "DICT_7X7_1000"}
 
 
-@functools.lru_cache(maxsize=16)
+_per_thread = threading.local()
+
+
 def detector(dictionary: str, border_bits: int = 1) -> cv2.aruco.ArucoDetector:
-    params = cv2.aruco.DetectorParameters()
-    params.markerBorderBits = border_bits
-    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
-    return cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)), params)
+    """A marker detector, one per thread (images are detected on several threads, and OpenCV
+    does not promise that one detector object may run on two at once)."""
+    made = _per_thread.__dict__.setdefault("detectors", {})
+    key = (dictionary, border_bits)
+    if key not in made:
+        params = cv2.aruco.DetectorParameters()
+        params.markerBorderBits = border_bits
+        params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+        made[key] = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)), params)
+    return made[key]
 
 
 def detect(gray: np.ndarray, dictionary: str, border_bits: int = 1) -> tuple[np.ndarray, np.ndarray]:

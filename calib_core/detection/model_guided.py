@@ -17,6 +17,7 @@ import numpy as np
 from ..models import camera
 from ..models.unproject import normalised_of_pixel
 from .grow import Lattice, confirm, shift
+from .image_circle import UnlitDistance
 
 MIN_RAY_Z = 0.1   # rays within ~84° of the axis go into PnP (its pinhole form needs z > 0)
 
@@ -55,7 +56,7 @@ def predict_through_model(model, lat: Lattice, square: float) -> np.ndarray | No
 def model_guided(gray: np.ndarray, model, square: float):
     """An ``after_growth`` hook for ``grow.grow_board``: confirm every model-predicted corner
     the growth did not reach; returns how many it added."""
-    def hook(lat: Lattice, unlit: np.ndarray) -> int:
+    def hook(lat: Lattice, unlit: np.ndarray | UnlitDistance) -> int:
         guess = predict_through_model(model, lat, square)
         if guess is None:
             return 0

@@ -15,6 +15,8 @@ Everything here works on arrays of N corners at once.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 
@@ -38,7 +40,7 @@ def quadrant_levels(gray: np.ndarray, pts: np.ndarray, e_col: np.ndarray, e_row:
     at = pts[:, None, :] + r * (offs[None, :, :1] * e_col[:, None, :] + offs[None, :, 1:] * e_row[:, None, :])
     m = at.astype(np.float32).reshape(-1, 1, 2)
     vals = cv2.remap(gray, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return np.median(vals.reshape(len(pts), 4, len(_QUARTER)).astype(np.float64), axis=2)
+    return np.sort(vals.reshape(len(pts), 4, len(_QUARTER)).astype(np.float64), axis=2)[..., 1]  # the median of 3
 
 
 def is_corner(gray: np.ndarray, pts: np.ndarray, e_col: np.ndarray, e_row: np.ndarray, even: np.ndarray,
@@ -47,13 +49,33 @@ def is_corner(gray: np.ndarray, pts: np.ndarray, e_col: np.ndarray, e_row: np.nd
     the refinement window. The near test matters on large squares: there a point that
     cornerSubPix left on an edge, a window's width from the corner, still has the right
     colours a fifth of a square out."""
-    spacing = np.minimum(np.linalg.norm(e_col, axis=1), np.linalg.norm(e_row, axis=1))
-    near = np.clip(0.6 * half / np.maximum(0.2 * spacing, 1e-9), 0.0, 1.0)
-    levels = quadrant_levels(gray, pts, e_col, e_row)
-    contrast = np.abs(levels[:, [0, 3]].mean(1) - levels[:, [1, 2]].mean(1))
-    step = arm_steps(gray, pts, e_col, e_row)
-    return (is_x_junction(levels, even) & is_x_junction(quadrant_levels(gray, pts, e_col, e_row, near), even)
-            & (step >= ARM_CONTRAST * contrast))
+    return CornerReading.of(gray, pts, e_col, e_row, half).is_corner(even)
+
+
+@dataclass
+class CornerReading:
+    """What the image shows around N corners, read once: the quadrants' grey levels (N, 4) a
+    fifth of a square out and within the refinement window, and whether all four arms separate
+    bright from dark. Which colours are right (the parity) is asked afterwards, so both
+    parities cost one reading."""
+
+    levels: np.ndarray
+    near: np.ndarray
+    arms_ok: np.ndarray
+
+    @classmethod
+    def of(cls, gray: np.ndarray, pts: np.ndarray, e_col: np.ndarray, e_row: np.ndarray,
+           half: np.ndarray) -> CornerReading:
+        spacing = np.minimum(np.linalg.norm(e_col, axis=1), np.linalg.norm(e_row, axis=1))
+        near = np.clip(0.6 * half / np.maximum(0.2 * spacing, 1e-9), 0.0, 1.0)
+        levels = quadrant_levels(gray, pts, e_col, e_row)
+        contrast = np.abs(levels[:, [0, 3]].mean(1) - levels[:, [1, 2]].mean(1))
+        arms_ok = arm_steps(gray, pts, e_col, e_row) >= ARM_CONTRAST * contrast
+        return cls(levels, quadrant_levels(gray, pts, e_col, e_row, near), arms_ok)
+
+    def is_corner(self, even: np.ndarray) -> np.ndarray:
+        """(N,) bool: ``is_corner`` with the TL and BR squares bright where even (N,)."""
+        return is_x_junction(self.levels, even) & is_x_junction(self.near, even) & self.arms_ok
 
 
 ARM_AT = 0.25         # of a square along each of the four edges leaving a corner ...

@@ -1,6 +1,7 @@
 """Detection: reports for bad input, grid placement, coverage, CLI (no real data needed)."""
 from __future__ import annotations
 
+import concurrent.futures as cf
 import json
 
 import cv2
@@ -68,14 +69,44 @@ def test_serial_and_pool_agree(images, monkeypatch):
     assert [r.to_json() for r in a.reports] == [r.to_json() for r in b.reports]
 
 
-def test_a_set_quicker_than_a_pools_start_is_detected_without_one(images, monkeypatch):
+def test_a_set_quicker_than_a_pools_start_is_detected_on_threads(images, monkeypatch):
     def no_pool(*args, **kwargs):
         raise AssertionError("a pool was started for a set this process detects faster alone")
 
+    threads = []
+    real_threads = detect.cf.ThreadPoolExecutor
+
+    def counted(*args, **kwargs):
+        threads.append(args[0] if args else kwargs["max_workers"])
+        return real_threads(*args, **kwargs)
+
     serial = detect_images(images, BOARD, workers=1)
     monkeypatch.setattr(detect.cf, "ProcessPoolExecutor", no_pool)
+    monkeypatch.setattr(detect.cf, "ThreadPoolExecutor", counted)
     det = detect_images(images, BOARD, workers=2)
+    assert threads == [2]
     assert [r.to_json() for r in det.reports] == [r.to_json() for r in serial.reports]
+
+
+def test_a_dead_pool_leaves_its_images_to_the_threads(images, monkeypatch):
+    def broken(*args, **kwargs):
+        raise cf.process.BrokenProcessPool("a worker died")
+
+    serial = detect_images(images, BOARD, workers=1)
+    monkeypatch.setattr(detect, "POOL_PAYS_AFTER", 0.0)
+    monkeypatch.setattr(detect.cf, "ProcessPoolExecutor", broken)
+    det = detect_images(images, BOARD, workers=2, progress=lambda d, t: None)
+    assert [r.to_json() for r in det.reports] == [r.to_json() for r in serial.reports]
+
+
+def test_each_thread_has_its_own_marker_detector():
+    from calib_core.detection.markers import detector
+
+    mine = detector("DICT_6X6_250")
+    assert detector("DICT_6X6_250") is mine
+    with cf.ThreadPoolExecutor(1) as pool:
+        other = pool.submit(detector, "DICT_6X6_250").result()
+    assert other is not mine
 
 
 def test_wrong_board_spec_is_explained(tmp_path):

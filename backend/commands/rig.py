@@ -4,7 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from calib_core.errors import SettingsError
-from calib_core.rig import calibrate_rig
+from calib_core.rig import calibrate_rig, evaluate_rig
 
 from .calibrate import set_settings
 from .inputs import load_observations
@@ -33,6 +33,10 @@ def register(sub) -> None:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a method setting, as for calibrate")
     p.add_argument("--outlier-sigma", type=float, default=5.0,
                    help="reject residuals beyond this many robust sigmas in each camera's calibration (0: keep all)")
+    p.add_argument("--holdout", nargs="+", metavar="CAMERA_TEST.json",
+                   help="other views of the same cameras, one file per camera in the same order: the rig's errors on "
+                        "them, each frame's board pose refit from every camera that saw it (models and relative poses "
+                        "held)")
     p.add_argument("-o", "--output", metavar="RIG.json", help="write the freecal.rig/1 JSON here (- : standard output)")
     p.add_argument("--json", action="store_true", help="print the rig JSON on standard output instead of the summary")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
@@ -57,12 +61,17 @@ def run(args) -> int:
     outputs = Outputs()
     rig_file = outputs.file(args.output, "-o", "rig.json")
     names = camera_names(args)
+    if args.holdout is not None and len(args.holdout) != len(names):
+        raise SettingsError(f"--holdout: expected {len(names)} files, one per camera in the order of the cameras, "
+                            f"got {len(args.holdout)}")
     if args.reference is not None and args.reference not in names:
         raise SettingsError(f"--reference {args.reference}: not one of the cameras {names}")
     settings = set_settings(args.set)
     if args.json:
         claim_stdout("--json")
     cameras = {name: load_observations(path) for name, path in zip(names, args.observations, strict=True)}
+    holdout = None if args.holdout is None else {
+        name: load_observations(path) for name, path in zip(names, args.holdout, strict=True)}
     with StageProgress(args.quiet) as progress:
         rig = calibrate_rig(cameras, args.method, args.reference, progress, refine_models=not args.hold_models,
                             outlier_sigma=args.outlier_sigma, **settings)
@@ -73,6 +82,8 @@ def run(args) -> int:
         print_json(rig.to_json())
         return 0
     print_rig(rig)
+    if holdout is not None:
+        print_holdout(evaluate_rig(rig, holdout))
     if rig_file is not None and not rig_file.to_stdout:
         print(f"\nwrote {rig_file}")
     return 0
@@ -99,6 +110,14 @@ def print_rig(rig) -> None:
           f"{sv['iterations']} iterations")
     for w in rig.diagnostics.get("warnings", []):
         print(f"warning: {w}")
+
+
+def print_holdout(result: dict) -> None:
+    print(f"\nhold-out: {result['n_points']} corners in {result['n_frames']} frames ({result['n_shared_frames']} seen by "
+          "more than one camera), each frame's board pose refit, models and relative poses held")
+    rows = [(name, c["n_points"], c["rmse"], c["rmse_axis"]) for name, c in result["cameras"].items()]
+    rows.append(("overall", result["n_points"], result["rmse"], result["rmse_axis"]))
+    table(["camera", "points", "rmse [px]", "rmse_axis [px]"], rows)
 
 
 def _vector(v, decimals: int) -> str:

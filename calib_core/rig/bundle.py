@@ -51,11 +51,13 @@ class _State:
 
 
 def adjust(corners: Corners, models: list[CameraModel], extrinsics: np.ndarray, frames: np.ndarray,
-           refine_models: bool = True) -> Adjusted:
+           refine_models: bool = True, refine_extrinsics: bool = True) -> Adjusted:
     """Levenberg–Marquardt from ``models``, ``extrinsics`` (C, 6) and
     ``frames`` (F, 6); ``refine_models`` False holds every model (OpenCV's
-    ``stereoCalibrate`` with ``CALIB_FIX_INTRINSIC``)."""
-    columns = _Columns(models, refine_models, len(frames))
+    ``stereoCalibrate`` with ``CALIB_FIX_INTRINSIC``); ``refine_extrinsics``
+    False holds the cameras' relative poses too (a hold-out: only the frames
+    are fitted)."""
+    columns = _Columns(models, refine_models, refine_extrinsics, len(models), len(frames))
     state = _State(list(models), extrinsics, frames)
     res, jac = _evaluate(corners, state, columns, jacobian=True)
     cost = float(res @ res)
@@ -92,7 +94,8 @@ class _Columns:
     """The unknowns' layout: each camera's free model parameters (none when
     held), the non-reference cameras' poses, the frames' poses."""
 
-    def __init__(self, models: list[CameraModel], refine_models: bool, n_frames: int):
+    def __init__(self, models: list[CameraModel], refine_models: bool, refine_extrinsics: bool, n_cameras: int,
+                 n_frames: int):
         self.model_columns = []  # per camera: (n_params,) column of each parameter, −1 if held
         offset = 0
         for m in models:
@@ -100,8 +103,9 @@ class _Columns:
             self.model_columns.append(np.where(col >= 0, col + offset, -1))
             offset += int((col >= 0).sum())
         self.refine_models = refine_models
+        self.refine_extrinsics = refine_extrinsics
         self.extrinsics = offset
-        self.frames = offset + 6 * (len(models) - 1)
+        self.frames = offset + (6 * (n_cameras - 1) if refine_extrinsics else 0)
         self.total = self.frames + 6 * n_frames
 
     def apply(self, state: _State, step: np.ndarray) -> _State:
@@ -111,7 +115,8 @@ class _Columns:
             models.append(m.with_params(np.where(free, m.params() + step[np.maximum(col, 0)] * free, m.params()))
                           if free.any() else m)
         ext = state.extrinsics.copy()
-        ext[1:] = camera.retract_poses(ext[1:], step[self.extrinsics:self.frames].reshape(-1, 6))
+        if self.refine_extrinsics:
+            ext[1:] = camera.retract_poses(ext[1:], step[self.extrinsics:self.frames].reshape(-1, 6))
         return _State(models, ext, camera.retract_poses(state.frames, step[self.frames:].reshape(-1, 6)))
 
 
@@ -180,7 +185,7 @@ def _evaluate(corners: Corners, state: _State, columns: _Columns, jacobian: bool
     entries_r.append(pose_rows.ravel())
     entries_c.append(np.broadcast_to(columns.frames + 6 * corners.frame[:, None, None] + np.arange(6), (n, 2, 6)).ravel())
     entries_v.append((d_pc @ rot @ camera.d_transform(p_ref)).ravel())
-    moving = corners.camera > 0  # the reference camera's pose is fixed
+    moving = corners.camera > 0 if columns.refine_extrinsics else np.zeros(n, dtype=bool)  # the reference's is fixed
     k = int(moving.sum())
     entries_r.append(pose_rows[moving].ravel())
     entries_c.append(np.broadcast_to(columns.extrinsics + 6 * (corners.camera[moving, None, None] - 1) + np.arange(6),

@@ -19,6 +19,7 @@ from ..observations import Observations
 from ..pipeline import calibrate
 from .bundle import Corners, adjust
 from .frames import frames_of
+from .poses import compose, inverse
 from .rig import Rig, RigCamera, RigFrame, RigMetrics
 
 # A camera whose corners the rig fits this much worse than its own calibration
@@ -29,7 +30,7 @@ INCONSISTENT_MARGIN_PX = 0.1
 
 
 @dataclass
-class _Camera:
+class CameraViews:
     """One camera's part: its own calibration, and per used view its frame,
     board pose and inlier corners."""
 
@@ -68,16 +69,16 @@ def calibrate_rig(cameras: dict[str, Observations], method: str = "auto", refere
     order = [names.index(reference)] + [k for k in range(len(names)) if names[k] != reference]
     parts = [parts[k] for k in order]
     extrinsics = _initial_extrinsics(parts)
-    frame_names = sorted({f for p in parts for f in p.frames}, key=_frame_key)
-    frame_poses = _initial_frames(parts, extrinsics, frame_names)
-    corners = _corners(parts, frame_names)
+    frame_names = sorted({f for p in parts for f in p.frames}, key=frame_key)
+    frame_poses = initial_frames(parts, extrinsics, frame_names)
+    corners = corners_of(parts, frame_names)
     t0 = time.perf_counter()
     result = adjust(corners, [p.calibration.model for p in parts], extrinsics, frame_poses, refine_models)
     progress("rig: done", 1.0)
     return _rig(parts, frame_names, corners, result, time.perf_counter() - t0, refine_models)
 
 
-def _camera_part(name: str, obs: Observations, cal: Calibration) -> _Camera:
+def _camera_part(name: str, obs: Observations, cal: Calibration) -> CameraViews:
     frame_of_view = dict(zip([v.name for v in obs.views], frames_of(name, obs.views), strict=True))
     frames, poses, obj, img = [], [], [], []
     for v in cal.views:
@@ -88,26 +89,15 @@ def _camera_part(name: str, obs: Observations, cal: Calibration) -> _Camera:
         poses.append(v.pose)
         obj.append(view.object_points[keep])
         img.append(view.image_points[keep])
-    return _Camera(name, cal, frames, np.array(poses).reshape(-1, 6), obj, img)
+    return CameraViews(name, cal, frames, np.array(poses).reshape(-1, 6), obj, img)
 
 
-def _frame_key(frame: str):
+def frame_key(frame: str):
     return (0, int(frame), frame) if frame.isdigit() else (1, 0, frame)
 
 
 # ---- the starting point -----------------------------------------------------------
-def _compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The pose ``a ∘ b`` (first b, then a), poses as (6,) [rvec | tvec]."""
-    ra, rb = Rotation.from_rotvec(a[:3]), Rotation.from_rotvec(b[:3])
-    return np.concatenate([(ra * rb).as_rotvec(), ra.apply(b[3:]) + a[3:]])
-
-
-def _inverse(a: np.ndarray) -> np.ndarray:
-    r = Rotation.from_rotvec(a[:3]).inv()
-    return np.concatenate([r.as_rotvec(), -r.apply(a[3:])])
-
-
-def _initial_extrinsics(parts: list[_Camera]) -> np.ndarray:
+def _initial_extrinsics(parts: list[CameraViews]) -> np.ndarray:
     """(C, 6) each camera's pose relative to the first (the reference), from
     the frames it shares with a camera already placed: rotations averaged,
     translations by their median. Cameras are placed through any chain of
@@ -122,11 +112,11 @@ def _initial_extrinsics(parts: list[_Camera]) -> np.ndarray:
                 shared = sorted(set(parts[c].frames) & set(parts[p].frames))
                 if not shared:
                     continue
-                relative = np.array([_compose(parts[c].poses[parts[c].frames.index(f)],
-                                              _inverse(parts[p].poses[parts[p].frames.index(f)])) for f in shared])
+                relative = np.array([compose(parts[c].poses[parts[c].frames.index(f)],
+                                              inverse(parts[p].poses[parts[p].frames.index(f)])) for f in shared])
                 rotation = Rotation.from_rotvec(relative[:, :3]).mean()
                 step = np.concatenate([rotation.as_rotvec(), np.median(relative[:, 3:], axis=0)])
-                placed[c] = _compose(step, pose_p)
+                placed[c] = compose(step, pose_p)
                 progress_made = True
                 break
         if not progress_made:
@@ -137,17 +127,17 @@ def _initial_extrinsics(parts: list[_Camera]) -> np.ndarray:
     return np.array([placed[c] for c in range(len(parts))])
 
 
-def _initial_frames(parts: list[_Camera], extrinsics: np.ndarray, frame_names: list[str]) -> np.ndarray:
+def initial_frames(parts: list[CameraViews], extrinsics: np.ndarray, frame_names: list[str]) -> np.ndarray:
     """(F, 6) the board's pose in the reference camera's frame at each frame,
     from the first camera (reference first) that saw it."""
     out = np.zeros((len(frame_names), 6))
     for i, f in enumerate(frame_names):
         c = next(c for c, p in enumerate(parts) if f in p.frames)
-        out[i] = _compose(_inverse(extrinsics[c]), parts[c].poses[parts[c].frames.index(f)])
+        out[i] = compose(inverse(extrinsics[c]), parts[c].poses[parts[c].frames.index(f)])
     return out
 
 
-def _corners(parts: list[_Camera], frame_names: list[str]) -> Corners:
+def corners_of(parts: list[CameraViews], frame_names: list[str]) -> Corners:
     index = {f: i for i, f in enumerate(frame_names)}
     cam, frame, view, obj, img = [], [], [], [], []
     for c, p in enumerate(parts):
@@ -163,7 +153,7 @@ def _corners(parts: list[_Camera], frame_names: list[str]) -> Corners:
 
 
 # ---- the result -------------------------------------------------------------------
-def _rig(parts: list[_Camera], frame_names: list[str], corners: Corners, result, seconds: float,
+def _rig(parts: list[CameraViews], frame_names: list[str], corners: Corners, result, seconds: float,
          refine_models: bool) -> Rig:
     cameras, report = [], {}
     warnings = []
@@ -192,7 +182,7 @@ def _rig(parts: list[_Camera], frame_names: list[str], corners: Corners, result,
     return Rig(parts[0].name, cameras, frames, summary, diagnostics)
 
 
-def _in_rig(part: _Camera, c: int, corners: Corners, result, reference: str) -> Calibration:
+def _in_rig(part: CameraViews, c: int, corners: Corners, result, reference: str) -> Calibration:
     """The camera's calibration with its views' poses and errors those of the
     rig (the frame's pose composed with the camera's), complete on its own."""
     cal = part.calibration
@@ -200,7 +190,7 @@ def _in_rig(part: _Camera, c: int, corners: Corners, result, reference: str) -> 
     for v, old in enumerate(cal.views):
         mine = (corners.camera == c) & (corners.view == v)
         res = result.residuals[mine]
-        pose = _compose(result.extrinsics[c], result.frames[corners.frame[mine][0]]) if mine.any() else old.pose
+        pose = compose(result.extrinsics[c], result.frames[corners.frame[mine][0]]) if mine.any() else old.pose
         views.append(dataclasses.replace(old, rvec=pose[:3], tvec=pose[3:], rmse=metrics.rmse(res),
                                          rmse_axis=metrics.rmse_axis(res)))
     mine = corners.camera == c

@@ -18,7 +18,7 @@ from calib_core.errors import DataError, FormatError
 from calib_core.models import camera
 from calib_core.models.opencv import OpenCVModel
 from calib_core.observations import Observations, View
-from calib_core.rig import Rig, calibrate_rig, frame_of
+from calib_core.rig import Rig, calibrate_rig, evaluate_rig, frame_of
 
 from ..conftest import shared_data
 
@@ -75,6 +75,18 @@ def test_a_three_camera_rig_is_recovered_through_a_chain_of_shared_frames():
     assert rig.metrics.rmse_axis == pytest.approx(0.2, rel=0.15)  # the corners' noise
     assert [f.frame for f in rig.frames] == [f"{k:03d}" for k in range(24)]
     assert "warnings" not in rig.diagnostics
+
+
+def test_refining_the_models_with_the_rig_predicts_held_out_frames_better():
+    # 10 training frames per camera; the hold-out: 20 other frames, noise-free
+    train = simulated_rig([range(0, 10)] * 3, seed=0)
+    test = simulated_rig([range(10, 30)] * 3, seed=0, sigma=0.0)
+    held = evaluate_rig(calibrate_rig(train, "zhang", refine_models=False), test)
+    joint = evaluate_rig(calibrate_rig(train, "zhang"), test)
+    assert joint["n_shared_frames"] == 20 and set(joint["cameras"]) == {"cam0", "cam1", "cam2"}
+    assert joint["rmse"] < 0.8 * held["rmse"]  # measured 0.028 against 0.047 px
+    with pytest.raises(DataError, match=r"\['cam9'\] are not in the rig"):
+        evaluate_rig(calibrate_rig(train, "zhang"), {"cam9": test["cam0"], "cam1": test["cam1"]})
 
 
 def test_rig_file_reads_back_and_each_calibration_stands_alone(tmp_path):
@@ -176,6 +188,10 @@ def test_cli_writes_the_rig_and_refuses_bad_flags(tmp_path, capsys):
     assert "rmse in rig" in printed and "wrote" in printed
     rig = Rig.load(out)
     assert [c.name for c in rig.cameras] == ["left", "right"]
+    assert main(["rig", *paths, "--method", "zhang", "--holdout", *paths, "-q"]) == 0
+    assert "hold-out:" in capsys.readouterr().out
+    assert main(["rig", *paths, "--holdout", paths[0], "-q"]) == 2
+    assert "--holdout: expected 2 files" in capsys.readouterr().err
     assert main(["rig", *paths, "--names", "left", "-q"]) == 2
     assert "expected 2 distinct names" in capsys.readouterr().err
     assert main(["rig", paths[0], "-q"]) == 2

@@ -11,7 +11,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..calibration import Calibration
-from ..errors import DataError
+from ..errors import CalibError, DataError
 from ..fit_report import FitMetrics
 from ..fitting import metrics
 from ..methods.common import Progress, named, no_progress, scaled
@@ -64,7 +64,11 @@ def calibrate_rig(cameras: dict[str, Observations], method: str = "auto", refere
     parts = []
     for k, name in enumerate(names):
         part = named(scaled(progress, 0.8 * k / len(names), 0.8 * (k + 1) / len(names)), f"camera {name}")
-        parts.append(_camera_part(name, cameras[name], calibrate(cameras[name], method, part, **settings)))
+        try:
+            cal = calibrate(cameras[name], method, part, **settings)
+        except CalibError as exc:  # say which camera
+            raise type(exc)(f"camera {name!r}: {exc}") from None
+        parts.append(_camera_part(name, cameras[name], cal))
     progress("rig: relative poses", 0.8)
     order = [names.index(reference)] + [k for k in range(len(names)) if names[k] != reference]
     parts = [parts[k] for k in order]

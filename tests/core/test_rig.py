@@ -161,6 +161,9 @@ def test_bad_rigs_are_refused_saying_why():
     twice["cam1"].views[1].frame = "000"
     with pytest.raises(DataError, match="are both frame '000'"):
         calibrate_rig(twice, "zhang")
+    few = simulated_rig([range(0, 6), range(0, 2)])
+    with pytest.raises(DataError, match="camera 'cam1': "):
+        calibrate_rig(few, "zhang")
     with pytest.raises(DataError, match="at least two cameras"):
         calibrate_rig({"cam0": cameras["cam0"]})
     with pytest.raises(DataError, match="reference camera 'nope'"):

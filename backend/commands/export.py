@@ -7,11 +7,15 @@ import json
 
 import numpy as np
 
+from calib_core.calibration import Calibration
 from calib_core.errors import SettingsError
 from calib_core.exports import LEAN_MODELS, MODELS, TARGETS, export
 from calib_core.exports.lean_fit import FitError, save_error_map
+from calib_core.exports.rig import export_rig
+from calib_core.rig import Rig
+from calib_core.rig.rig import FORMAT as RIG_FORMAT
 
-from .inputs import load_calibration, load_observations, one_stdin
+from .inputs import load_observations, one_stdin, read_document
 from .output import claim_stdout, print_json
 from .outputs import Outputs
 from .undistort import ALPHA_HELP, FOCAL_HELP, KEEP, chosen_camera
@@ -25,7 +29,9 @@ def register(sub) -> None:
                                    "already one of the tool's models is fitted by the closest one, and the fit "
                                    "error (what the export loses) over the covered region and the whole image is "
                                    "printed and stored. " + CONSUMERS)
-    p.add_argument("calibration", help="freecal.calibration/1 JSON file (- : standard input)")
+    p.add_argument("calibration", help="freecal.calibration/1 JSON file, or a freecal.rig/1 rig (--to kalibr: every "
+                                       "camera in one camchain; --to opencv: a stereo pair's M1 D1 M2 D2 R T) "
+                                       "(- : standard input)")
     p.add_argument("--to", required=True, choices=tuple(TARGETS) + tuple(LEAN_MODELS),
                    help="the tool (" + ", ".join(TARGETS) + "); a model name (opencv8, kb4, ...) means opencv "
                         "with that model")
@@ -70,7 +76,10 @@ def run(args) -> int:
     one_stdin(args.calibration, args.observations)
     if args.json:
         claim_stdout("--json")
-    source = load_calibration(args.calibration)
+    doc = read_document(args.calibration)
+    if isinstance(doc, dict) and doc.get("format") == RIG_FORMAT:
+        return _export_rig(args, Rig.from_json(doc), fmt, model, outputs, written)
+    source = Calibration.from_json(doc)
     obs = load_observations(args.observations) if args.observations else None
     covered = None if obs is None else np.concatenate([np.asarray(v.image_points, dtype=np.float64) for v in obs.views])
     done = export(source, fmt, model, covered,
@@ -120,6 +129,31 @@ def run(args) -> int:
         print(f"rectified camera (P): focal {done.camera.focal:.3f} px, centre ({done.camera.cx:.3f}, "
               f"{done.camera.cy:.3f})" + (f"; note: {done.camera.note}" if done.camera.note else ""))
     print("wrote " + ", ".join(files))
+    return 0
+
+
+def _export_rig(args, rig: Rig, fmt: str, model: str, outputs: Outputs, written) -> int:
+    """Every camera of a rig in one file (``calib_core.exports.rig``)."""
+    given = [flag for flag, value in (("--observations", args.observations), ("--error-map", args.error_map),
+                                      ("--uncertainty", args.uncertainty), ("--keep", args.keep),
+                                      ("--alpha", args.alpha), ("--focal", args.focal)) if value is not None]
+    if given:
+        raise SettingsError(f"{', '.join(given)}: not for a rig; export one camera's calibration for those")
+    done = export_rig(rig, fmt, model)
+    with outputs.writing():
+        written.write(done.text)
+    if args.json:
+        print_json({"format": fmt, "output": str(written), "cameras": [
+            {"camera": cam.name, "model": e.fit.name, "consumer_model": e.consumer_model, "exact": e.fit.exact,
+             "fit_error": None if e.fit.exact else {"covered": e.fit.covered.to_json(), "image": e.fit.image.to_json(),
+                                                    "units": "px"}}
+            for cam, e in zip(rig.cameras, done.cameras, strict=True)]})
+        return 0
+    for cam, e in zip(rig.cameras, done.cameras, strict=True):
+        how = "exact" if e.fit.exact else (f"fitted to its {e.fit.fitted_to} calibration, rms {e.fit.covered.rms:.4g} px "
+                                           f"covered, {e.fit.image.rms:.4g} px whole image")
+        print(f"{cam.name}: {fmt} / {e.consumer_model} ({e.fit.name}): {how}")
+    print(f"wrote {written}")
     return 0
 
 

@@ -11,6 +11,8 @@ for the resolution; pixels as OpenCV's (the centre of the top-left at (0, 0)).
 """
 from __future__ import annotations
 
+import numpy as np
+
 from .lean_fit import LeanFit
 from .text import fit_note, numbers
 
@@ -19,15 +21,25 @@ KALIBR_MODELS = {"opencv4": "radtan", "kb4": "equidistant"}
 
 def camchain_yaml(fit: LeanFit, rostopic: str = "/cam0/image_raw") -> str:
     """The camchain text of one camera (``cam0``)."""
+    return f"# {fit_note(fit)}\n" + camera_entry(0, fit, rostopic)
+
+
+def camera_entry(index: int, fit: LeanFit, rostopic: str, overlaps: list[int] | None = None,
+                 t_cn_cnm1: np.ndarray | None = None) -> str:
+    """``cam{index}``'s block of a camchain; ``t_cn_cnm1``: the 4 × 4 transform
+    from the previous camera's frame into this one's (Kalibr's name), for every
+    camera but the first."""
     m = fit.parametric
     fx, fy, cx, cy, _ = m.intrinsics
     w, h = fit.image_size
-    return (f"# {fit_note(fit)}\n"
-            "cam0:\n"
+    text = (f"cam{index}:\n"
             "  camera_model: pinhole\n"
             f"  intrinsics: {numbers([fx, fy, cx, cy])}\n"
             f"  distortion_model: {KALIBR_MODELS[fit.name]}\n"
             f"  distortion_coeffs: {numbers(m.coefficients)}\n"
             f"  resolution: [{int(w)}, {int(h)}]\n"
-            "  cam_overlaps: []\n"
+            f"  cam_overlaps: [{', '.join(str(k) for k in overlaps or [])}]\n"
             f"  rostopic: {rostopic}\n")
+    if t_cn_cnm1 is not None:
+        text += "  T_cn_cnm1:\n" + "".join(f"  - {numbers(row)}\n" for row in t_cn_cnm1)
+    return text

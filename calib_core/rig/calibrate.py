@@ -179,6 +179,8 @@ def _rig(parts: list[CameraViews], frame_names: list[str], corners: Corners, res
         "solver": {"iterations": result.iterations, "status": result.status, "cost": result.cost,
                    "seconds": seconds, "models_refined": refine_models},
         "cameras": report,
+        # the cameras each one shares a frame with (Kalibr's cam_overlaps)
+        "overlaps": {p.name: [q.name for q in parts if q is not p and set(p.frames) & set(q.frames)] for p in parts},
     }
     if warnings:
         diagnostics["warnings"] = warnings

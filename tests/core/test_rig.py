@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 from backend.cli import main
 from calib_core.board import BoardSpec
 from calib_core.detection.detect import detect_images
-from calib_core.errors import DataError, FormatError
+from calib_core.errors import DataError, FormatError, SettingsError
 from calib_core.models import camera
 from calib_core.models.opencv import OpenCVModel
 from calib_core.observations import Observations, View
@@ -201,3 +201,48 @@ def test_cli_writes_the_rig_and_refuses_bad_flags(tmp_path, capsys):
     assert "two or more cameras" in capsys.readouterr().err
     assert main(["rig", *paths, "--reference", "middle", "-q"]) == 2
     assert "not one of the cameras" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # six lean-model fits for Kalibr: 6-13 s
+def test_rig_exports_read_by_opencv_and_kalibr_readers(tmp_path, capsys):
+    from calib_core.exports.rig import export_rig
+
+    from .consumers import kalibr_camera, kalibr_project
+
+    rig = calibrate_rig(simulated_rig([range(0, 10)] * 3, seed=4), "zhang")
+    frame = rig.frames[0]
+    board_in_ref = camera.rotate(frame.rvec, BOARD) + frame.tvec
+    # Kalibr: every camera, each placed from the one before; a board projects as the rig projects it
+    kalibr = export_rig(rig, "kalibr")
+    chain = kalibr.text
+    pose = np.eye(4)
+    for k, cam in enumerate(rig.cameras):
+        entry = kalibr_camera(chain, k)
+        if k:
+            pose = np.array(entry["T_cn_cnm1"]) @ pose
+        pc = board_in_ref @ pose[:3, :3].T + pose[:3, 3]
+        fit = kalibr.cameras[k].fit
+        assert np.max(np.abs(kalibr_project(entry, pc) - rig.project(cam.name, board_in_ref))) < 3 * fit.covered.max + 1e-6
+    # OpenCV's stereo file: cv2 reads M1 D1 M2 D2 R T; projectPoints agrees exactly (the models are OpenCV's own)
+    with pytest.raises(SettingsError, match="two cameras"):
+        export_rig(rig, "opencv")
+    pair = Rig(rig.reference, rig.cameras[:2], rig.frames, rig.metrics, rig.diagnostics)
+    path = tmp_path / "stereo.yaml"
+    path.write_text(export_rig(pair, "opencv").text)
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    m = {key: fs.getNode(key).mat() for key in ("M1", "D1", "M2", "D2", "R", "T")}
+    size = (int(fs.getNode("image_width_1").real()), int(fs.getNode("image_height_1").real()))
+    r1 = cv2.Rodrigues(np.asarray(frame.rvec))[0]
+    uv, _ = cv2.projectPoints(BOARD, cv2.Rodrigues(m["R"] @ r1)[0], m["R"] @ frame.tvec.reshape(3, 1) + m["T"], m["M2"], m["D2"])
+    assert np.max(np.abs(uv.reshape(-1, 2) - pair.project("cam1", BOARD, frame.rvec, frame.tvec))) < 1e-6
+    assert cv2.stereoRectify(m["M1"], m["D1"], m["M2"], m["D2"], size, m["R"], m["T"])[0].shape == (3, 3)
+    # the command: a rig file goes through freecal export too
+    rig_path = tmp_path / "rig.json"
+    rig.save(rig_path)
+    assert main(["export", str(rig_path), "--to", "opencv", "-o", str(tmp_path / "stereo.yaml")]) == 2
+    assert "this rig has 3" in capsys.readouterr().err
+    pair.save(rig_path)
+    assert main(["export", str(rig_path), "--to", "opencv", "-o", str(tmp_path / "stereo.yaml")]) == 0
+    assert "cam1: opencv / opencv (opencv5): exact" in capsys.readouterr().out
+    assert main(["export", str(rig_path), "--to", "ros", "-o", str(tmp_path / "x.yaml")]) == 2
+    assert "a rig exports to kalibr or opencv" in capsys.readouterr().err

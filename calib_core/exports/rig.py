@@ -1,0 +1,81 @@
+"""A rig for the tools that read several cameras at once: Kalibr's camchain
+(every camera, each with ``T_cn_cnm1`` from the one before) and OpenCV's
+stereo FileStorage (two cameras: ``M1, D1, M2, D2, R, T`` as
+``samples/cpp/stereo_calib.cpp`` writes them, what ``cv2.stereoRectify``
+takes). Each camera is exported as ``export`` writes it alone (its own model
+when the tool knows it, else the closest fitted one, with the fit's error)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..errors import SettingsError
+from ..rig import Rig
+from ..rig.poses import compose, inverse
+from .kalibr import camera_entry
+from .targets import Export, export
+from .text import fit_note
+
+RIG_TARGETS = ("kalibr", "opencv")
+
+
+@dataclass
+class RigExport:
+    to: str
+    text: str
+    cameras: list[Export]  # each camera's export, in the rig's order
+
+
+def export_rig(rig: Rig, to: str, model: str = "auto") -> RigExport:
+    if to not in RIG_TARGETS:
+        raise SettingsError(f"a rig exports to {' or '.join(RIG_TARGETS)} (several cameras in one file), not {to!r}; "
+                            "export one camera by saving its calibration (cameras[i].calibration) alone")
+    done = [export(cam.calibration, to, model) for cam in rig.cameras]
+    if to == "kalibr":
+        return RigExport(to, _camchain(rig, done), done)
+    if len(rig.cameras) != 2:
+        raise SettingsError(f"OpenCV's stereo file holds two cameras; this rig has {len(rig.cameras)}: "
+                            "use --to kalibr for every camera in one camchain")
+    return RigExport(to, _stereo(rig, done), done)
+
+
+def _matrix(pose: np.ndarray) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3] = Rotation.from_rotvec(pose[:3]).as_matrix()
+    out[:3, 3] = pose[3:]
+    return out
+
+
+def _camchain(rig: Rig, done: list[Export]) -> str:
+    overlaps = rig.diagnostics.get("overlaps", {})
+    names = [c.name for c in rig.cameras]
+    text = "".join(f"# cam{k} = {c.name}: {fit_note(e.fit)}\n" for k, (c, e) in enumerate(zip(rig.cameras, done, strict=True)))
+    for k, (cam, e) in enumerate(zip(rig.cameras, done, strict=True)):
+        previous = None if k == 0 else _matrix(compose(cam.pose, inverse(rig.cameras[k - 1].pose)))
+        shared = [names.index(n) for n in overlaps.get(cam.name, names) if n != cam.name and n in names]
+        text += camera_entry(k, e.fit, f"/{cam.name}/image_raw", shared, previous)
+    return text
+
+
+def _stereo(rig: Rig, done: list[Export]) -> str:
+    import cv2
+
+    first, second = rig.cameras
+    relative = compose(second.pose, inverse(first.pose))
+    fs = cv2.FileStorage("stereo.yaml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
+    for k, e in enumerate(done, start=1):
+        model = e.fit.parametric
+        fx, fy, cx, cy, skew = model.intrinsics
+        fs.write(f"camera_{k}", rig.cameras[k - 1].name)
+        fs.write(f"image_width_{k}", int(e.fit.image_size[0]))
+        fs.write(f"image_height_{k}", int(e.fit.image_size[1]))
+        fs.write(f"distortion_model_{k}", e.consumer_model)
+        fs.write(f"M{k}", np.array([[fx, skew, cx], [0, fy, cy], [0, 0, 1.0]]))
+        fs.write(f"D{k}", np.asarray(model.coefficients, dtype=np.float64).reshape(1, -1))
+        fs.write(f"fit_{k}", fit_note(e.fit))
+    fs.write("R", Rotation.from_rotvec(relative[:3]).as_matrix())
+    fs.write("T", relative[3:].reshape(3, 1))
+    fs.write("rms_px", float(rig.metrics.rmse))
+    return fs.releaseAndGetString()

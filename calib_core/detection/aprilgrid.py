@@ -67,8 +67,8 @@ def detect(gray: np.ndarray, board: BoardSpec, markers: Markers | None = None):
     inside = np.all((raw >= half[:, None] + 1) & (raw <= np.array([w, h]) - 2 - half[:, None]), axis=1)
     ids, raw, half = ids[inside], raw[inside], half[inside]
     pts = corner_refine.refine(gray, raw, half)
-    pts, det = corner_refine.saddle_points(gray, pts, half)
-    keep = (det < 0) & (np.linalg.norm(pts - raw, axis=1) <= 0.5 + MAX_SHIFT_SHARE * np.repeat(edge, 4)[inside])
+    pts, det, sure = corner_refine.saddle_points(gray, pts, half)
+    keep = (det < 0) & sure & (np.linalg.norm(pts - raw, axis=1) <= 0.5 + MAX_SHIFT_SHARE * np.repeat(edge, 4)[inside])
     if not keep.any():
         return None, None, f"too few corners (0 of {len(raw)} tag corners confirmed)"
     return ids[keep], pts[keep], ""

@@ -49,6 +49,13 @@ def refine(gray: np.ndarray, pts: np.ndarray, half: np.ndarray) -> np.ndarray:
 SADDLE_BLUR = 1.5        # px, Gaussian pre-smoothing of the image for the saddle fit
 SADDLE_STEPS = 3         # re-centred fits
 MAX_SADDLE_SHIFT = 1.5   # px the fit may move from cornerSubPix's answer; a corner whose saddle lies further is dropped
+# A saddle that can be located: fitted again from where it ended, the fit stays put (every
+# re-centred step within the window, the last at most SETTLED px), and the window one px
+# smaller puts it within WINDOW_AGREEMENT px. Where a tag's bits, a dim blurred horizon or a
+# curved edge shape the surface, the saddle follows the window instead (BabelCalib ov_plane:
+# its 3 corners more than 1 px from the authors', 1.1-2.6 px; tried at 0.3/0.75 px too).
+SETTLED = 0.1            # px
+WINDOW_AGREEMENT = 0.5   # px
 
 
 SADDLE_BLUR_REACH = 7    # px: OpenCV's float kernel for SADDLE_BLUR has round(8 σ + 1) | 1 = 13 taps, radius 6
@@ -59,21 +66,41 @@ def smoothed(gray: np.ndarray) -> np.ndarray:
     return cv2.GaussianBlur(gray.astype(np.float32), (0, 0), SADDLE_BLUR)
 
 
-def saddle_points(gray: np.ndarray, pts: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def saddle_points(gray: np.ndarray, pts: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``saddle_fit`` of pts (N, 2) on the image smoothed only where the fits can look: the
     box round the corners, widened by the farthest a fit reaches (its window, re-centred
-    SADDLE_STEPS times by at most the window's half each) and the blur's own reach. Blurring
-    the whole frame cost three times the fits on OpenCV's 9x6 photos (a board a third of a VGA frame)."""
+    SADDLE_STEPS times by at most the window's half each, then twice that for ``located``'s
+    fits) and the blur's own reach. Blurring the whole frame cost three times the fits on
+    OpenCV's 9x6 photos (a board a third of a VGA frame).
+
+    Returns (saddle points (N, 2), Hessian determinants (N,), located (N,) bool: ``located``)."""
     finite = np.all(np.isfinite(pts), axis=1)
     if not finite.any():
-        return saddle_fit(smoothed(gray), pts, half)
-    reach = (SADDLE_STEPS + 1) * int(half.max()) + 2 + SADDLE_BLUR_REACH
+        smooth = smoothed(gray)
+        fitted, det = saddle_fit(smooth, pts, half)
+        return fitted, det, located(smooth, fitted, half)
+    reach = (2 * SADDLE_STEPS + 1) * int(half.max()) + 2 + SADDLE_BLUR_REACH
     h, w = gray.shape[:2]
     x0, y0 = np.maximum(np.floor(pts[finite].min(0)).astype(int) - reach, 0)
     x1, y1 = np.minimum(np.ceil(pts[finite].max(0)).astype(int) + reach + 1, [w, h])
     origin = np.array([x0, y0], np.float64)
-    fitted, det = saddle_fit(smoothed(gray[y0:y1, x0:x1]), pts - origin, half)
-    return fitted + origin, det
+    smooth = smoothed(gray[y0:y1, x0:x1])
+    fitted, det = saddle_fit(smooth, pts - origin, half)
+    return fitted + origin, det, located(smooth, fitted, half)
+
+
+def located(smooth: np.ndarray, fitted: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """(N,) bool: saddle points fitted (N, 2) with half-windows half (N,) that the image
+    locates to sub-pixel: the fit started from each again settles where it is (no step
+    refused, the last at most SETTLED px), and with a window one px smaller (at least 2) it
+    lands within WINDOW_AGREEMENT px. A saddle shaped by what lies inside the window (a tag's
+    bits next to the corner, a blurred dim corner at a fisheye's horizon) moves with the
+    window; the one cornerSubPix's answer kept because every step of the fit was refused
+    (no saddle within reach) does not settle."""
+    again, _, settled = _saddle_iterate(smooth, fitted, half)
+    smaller, _, settled_smaller = _saddle_iterate(smooth, fitted, np.maximum(half - 1, 2))
+    agree = np.linalg.norm(smaller - fitted, axis=1) <= WINDOW_AGREEMENT
+    return settled & settled_smaller & agree & (np.linalg.norm(again - fitted, axis=1) <= SETTLED)
 
 
 def saddle_fit(smooth: np.ndarray, pts: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -85,11 +112,20 @@ def saddle_fit(smooth: np.ndarray, pts: np.ndarray, half: np.ndarray) -> tuple[n
     (which balances gradients across the whole window) is pulled by the curved edges of
     strongly distorted squares. Gaussian weights (σ = half / 2) keep the fit local.
     """
+    out, det, _ = _saddle_iterate(smooth, pts, half)
+    return out, det
+
+
+def _saddle_iterate(smooth: np.ndarray, pts: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``saddle_fit``, and (N,) bool: every re-centred step was taken (none refused for
+    leaving the window or for a flat surface) and the last moved at most SETTLED px."""
     out, det = pts.astype(np.float64).copy(), np.full(len(pts), np.nan)
+    settled = np.zeros(len(pts), bool)
     for h in np.unique(half):
         sel = np.flatnonzero(half == h)
         (dx, dy), sqrt_wts, pinv = _saddle_design(int(h))
         p = out[sel]
+        taken = np.ones(len(sel), bool)
         for _ in range(SADDLE_STEPS):
             # x and y maps apart, (n, M) each: a broadcast over a last axis of 2 is ten times slower
             mx = (p[:, :1] + dx).astype(np.float32)
@@ -99,10 +135,13 @@ def saddle_fit(smooth: np.ndarray, pts: np.ndarray, half: np.ndarray) -> tuple[n
             dd = 4 * a * c - b * b
             with np.errstate(all="ignore"):
                 step = np.stack([(b * e - 2 * c * d) / dd, (b * d - 2 * a * e) / dd], 1)
-            step = np.where(np.isfinite(step) & (np.abs(step) <= h), step, 0.0)
+            ok = np.all(np.isfinite(step) & (np.abs(step) <= h), axis=1)
+            taken &= ok
+            step = np.where(ok[:, None], step, 0.0)
             p = p + step
         out[sel], det[sel] = p, dd
-    return out, det
+        settled[sel] = taken & (np.linalg.norm(step, axis=1) <= SETTLED)
+    return out, det, settled
 
 
 @functools.lru_cache(maxsize=16)
@@ -120,8 +159,9 @@ def _saddle_design(h: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def polish(gray: np.ndarray, pts: np.ndarray, half: np.ndarray, max_shift: float) -> tuple[np.ndarray, np.ndarray]:
     """cornerSubPix then the saddle fit of corners pts (N, 2) with half-windows half (N,);
     (polished (N, 2), kept (N,) bool): a corner is kept where the image is a saddle there
-    and the polish moved it at most ``max_shift`` px (further: the first estimate was on
-    something else, a marker's edge say, and the corner is dropped, not guessed)."""
+    that it locates (``located``) and the polish moved it at most ``max_shift`` px (further:
+    the first estimate was on something else, a marker's edge say, and the corner is
+    dropped, not guessed)."""
     refined = refine(gray, pts, half)
-    out, det = saddle_points(gray, refined, half)
-    return out, (det < 0) & (np.linalg.norm(out - pts, axis=1) <= max_shift)
+    out, det, sure = saddle_points(gray, refined, half)
+    return out, (det < 0) & sure & (np.linalg.norm(out - pts, axis=1) <= max_shift)

@@ -101,9 +101,9 @@ def _saddle_polish(gray: np.ndarray, lat: Lattice) -> np.ndarray:
     i, j = np.nonzero(lat.known)
     e_col, e_row = lattice_steps(lat.p)
     half = corner_refine.half_window(corner_refine.nearest_corner(e_col[i, j], e_row[i, j]))
-    fitted, det = corner_refine.saddle_points(gray, lat.p[i, j], half)
+    fitted, det, sure = corner_refine.saddle_points(gray, lat.p[i, j], half)
     spacing = corner_refine.nearest_corner(e_col[i, j], e_row[i, j])
-    ok = (det < 0) & (np.linalg.norm(fitted - lat.p[i, j], axis=1) <= corner_refine.MAX_SADDLE_SHIFT)
+    ok = (det < 0) & sure & (np.linalg.norm(fitted - lat.p[i, j], axis=1) <= corner_refine.MAX_SADDLE_SHIFT)
     ok &= corner_refine.window_holds_one_corner(np.nan_to_num(spacing, nan=np.inf))
     lat.p[i, j] = np.where(ok[:, None], fitted, np.nan)
     return lat.known

@@ -106,7 +106,9 @@ def test_babelcalib_grown_corners_match_the_authors_same_corners():
     """Grown over the whole visible board (issue #19): as many corners as the authors'
     detector found, each within a fraction of a pixel of the authors' corner of the same id
     (ids mapped through one lattice motion per view). A wrong id would sit a whole square
-    (8 px or more) away: none does."""
+    (8 px or more) away: none does. None is more than 1 px off either: a corner whose saddle
+    the image cannot locate (it moves with the fit's window: a tag's bits next to the corner,
+    a blurred dim corner at the horizon) is dropped (``corner_refine.located``)."""
     from benchmarks.bench_detect import babel_reference
     from calib_core.detection.corner_error import same_id_errors
 
@@ -117,5 +119,5 @@ def test_babelcalib_grown_corners_match_the_authors_same_corners():
     assert det.observations.n_points >= 9000, det.observations.n_points   # the authors': 9587
     assert np.mean(d < 0.5) >= 0.99, np.mean(d < 0.5)
     assert np.median(d) < 0.1
-    assert d.max() < 4.0, d.max()                                          # no corner under a wrong id
+    assert d.max() < 1.0, d.max()                     # before corner_refine.located: 3 (1.11-2.56 px)
     assert e["n_unreferenced"] <= 0.02 * det.observations.n_points

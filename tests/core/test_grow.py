@@ -134,3 +134,29 @@ def test_the_unlit_frame_is_found_however_little_of_it_touches_the_border():
         slow = (cv2.GaussianBlur(patch, (0, 0), image_circle.BLUR_SIGMA) < image_circle.UNLIT)
         touches = slow[0].any()
         assert (image_circle.distance_to_unlit(patch).min() == 0) == touches
+
+
+def _blurred_corner(tag_bits: bool, square: float = 24.0) -> np.ndarray:
+    """An 80 px checker corner at (40.5, 39.5), blurred; with tag_bits, a bright patch in the
+    dark square to its upper right from 0.15 of a square out, as a tag's white bits are."""
+    y, x = np.mgrid[0:80, 0:80].astype(float)
+    u, v = x - 40.3, 39.6 - y
+    img = np.where((u > 0) ^ (v > 0), 200.0, 40.0)
+    if tag_bits:
+        img[(u > 0.15 * square) & (u < 0.45 * square) & (v > 0.15 * square) & (v < 0.45 * square)] = 200.0
+    return cv2.GaussianBlur(img, (0, 0), 1.2).astype(np.uint8)
+
+
+def test_a_saddle_that_moves_with_the_window_is_not_located():
+    """corner_refine.located: a clean corner's saddle is the same for every window; where a
+    tag's bright bits lie inside the window it follows the window (here 1.9 px off with a
+    half-window of 6), and the corner is not located; nor is a point with no saddle."""
+    from calib_core.detection import corner_refine
+    start = np.array([[40.0, 40.0]])
+    for h in (3, 6, 8):
+        p, det, sure = corner_refine.saddle_points(_blurred_corner(False), start, np.array([h]))
+        assert sure[0] and det[0] < 0 and np.linalg.norm(p[0] - [40.5, 39.5]) < 0.05
+    p, _, sure = corner_refine.saddle_points(_blurred_corner(True), start, np.array([6]))
+    assert not sure[0] and np.linalg.norm(p[0] - [40.5, 39.5]) > 1.0
+    _, _, sure = corner_refine.saddle_points(np.full((80, 80), 90, np.uint8), start, np.array([6]))
+    assert not sure[0]

@@ -250,8 +250,16 @@ def ideal_field_problem(init, data: Data, image_size, s: BSplineSettings):
 
     gauge_point = (float(intrinsics[2]), float(intrinsics[3]))
     footprint = ideal_footprint(init.model, intrinsics, s.base, image_size)
+    priors: dict[tuple[bytes, bytes], np.ndarray] = {}  # by knots: each grid's is asked for by every step on it
+
+    def prior_control(field):
+        key = (field.knots_u.tobytes(), field.knots_v.tobytes())
+        if key not in priors:
+            priors[key] = prior_field(init.model, intrinsics, field, s.base)
+        return priors[key]
+
     problem = FieldProblem(_padded_box(np.vstack([footprint, ideal[ok]])), footprint, gauge_point,
-                           lambda field: prior_field(init.model, intrinsics, field, s.base), samples, make)
+                           prior_control, samples, make)
     return problem, probe, init.poses, ok, f"more than {PINHOLE_MAX_ANGLE_DEG:.0f}° off axis (outside the pinhole base)"
 
 

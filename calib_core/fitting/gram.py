@@ -13,20 +13,24 @@ import scipy.sparse as sp
 from numba import njit
 
 
-def gram(jac: sp.csr_matrix) -> np.ndarray:
-    """Dense JᵀJ (n, n) of a CSR matrix (m, n); repeated columns in a row are summed."""
+def gram(jac: sp.csr_matrix, weights: np.ndarray | None = None) -> np.ndarray:
+    """Dense JᵀJ (n, n) of a CSR matrix (m, n), or JᵀWJ with ``weights`` (m,)
+    the diagonal of W; repeated columns in a row are summed."""
     jac = sp.csr_matrix(jac)
-    return _gram(jac.indptr, jac.indices, jac.data, jac.shape[1])
+    w = np.ones(0) if weights is None else np.ascontiguousarray(weights, dtype=np.float64)
+    return _gram(jac.indptr, jac.indices, jac.data, jac.shape[1], w)
 
 
 @njit(cache=True, nogil=True)
-def _gram(indptr, indices, data, n):  # pragma: no cover (compiled)
+def _gram(indptr, indices, data, n, weights):  # pragma: no cover (compiled)
     out = np.zeros((n, n))
+    weighted = len(weights) > 0
     for row in range(len(indptr) - 1):
         start, end = indptr[row], indptr[row + 1]
+        scale = weights[row] if weighted else 1.0
         for a in range(start, end):
-            ca, va = indices[a], data[a]
-            out[ca, ca] += va * va
+            ca, va = indices[a], data[a] * scale  # w·J_a: each product takes the row's weight once
+            out[ca, ca] += va * data[a]
             for b in range(a + 1, end):
                 cb, p = indices[b], va * data[b]
                 if cb > ca:

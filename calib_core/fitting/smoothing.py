@@ -33,6 +33,8 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
+from .gram import gram
+
 # Up to 1e6: over a parametric core that already fits the lens the field is
 # wanted nearly flat; capped at 1e3 it was held at the edge.
 LAMBDA_GRID = np.logspace(-3, 6, 19)
@@ -118,8 +120,9 @@ class _Component:
         # (Z, orthonormal). As heavily weighted rows instead they made S so
         # ill-conditioned that the left-out residuals lost 8 digits.
         z = np.linalg.qr(g.T, mode="complete")[0][:, np.linalg.matrix_rank(g):]
-        bz = np.asarray(b @ z)
-        btwb = bz.T @ (w[:, None] * bz)
+        # BᵀWB from B's sparse rows, then into the null space: Zᵀ(BᵀWB)Z costs
+        # two n³ products where (BZ)ᵀW(BZ) cost N·n².
+        btwb = z.T @ gram(b, w) @ z
         s = btwb + max(ridge, 1e-9) * np.eye(z.shape[1])
         rz = z.T @ r @ z
         try:
@@ -130,14 +133,28 @@ class _Component:
             s += 1e-9 * np.trace(btwb) / len(s) * np.eye(len(s))
             mu, v = scipy.linalg.eigh(rz, s)
         self.mu = np.maximum(mu, 0.0)
-        self.q = (bz @ v)[order]  # (N, n') rows in the eigenbasis, grouped by view
+        self.q = np.asarray(b[order] @ (z @ v))  # (N, n') rows in the eigenbasis, grouped by view
         self.d, self.w = d[order], w[order]
         self.rhs = self.q.T @ (self.w * self.d)
         self.lever = np.einsum("ij,ij->j", self.q, self.w[:, None] * self.q)  # vᵢᵀ BᵀWB vᵢ
         self.bounds = np.concatenate([[0], np.cumsum(counts)])
+        # Per group, the λ-free part of its system (built on the first scoring, kept for the refinement's).
+        self.blocks: list[np.ndarray | None] = [None] * len(counts)
+
+    def _block(self, k: int) -> np.ndarray:
+        """Group k's λ-free matrix: W_g^½ Q_g (rows, n') when the group has
+        fewer rows than unknowns, else Q_gᵀ W_g Q_g (n', n')."""
+        block = self.blocks[k]
+        if block is None:
+            rows = slice(self.bounds[k], self.bounds[k + 1])
+            qg, wg = self.q[rows], self.w[rows]
+            block = np.sqrt(wg)[:, None] * qg if len(wg) < len(self.mu) else qg.T @ (wg[:, None] * qg)
+            self.blocks[k] = block
+        return block
 
     def scores(self, lambdas: np.ndarray):
-        """((G, L) left-out sum of squares, (L,) effective parameters)."""
+        """((G, L) left-out sum of squares, (L,) effective parameters).
+        Each (group, λ) is one symmetric positive definite solve (Cholesky)."""
         shrink = 1.0 / (1.0 + np.outer(lambdas, self.mu))  # (L, n')
         resid = self.d[None, :] - (shrink * self.rhs) @ self.q.T  # (L, N) residuals of the full fit
         n = len(self.mu)
@@ -145,15 +162,28 @@ class _Component:
         for k in range(len(sse)):
             rows = slice(self.bounds[k], self.bounds[k + 1])
             qg, wg, rg = self.q[rows], self.w[rows], resid[:, rows]
-            if len(wg) < n:  # (I − H_gg) e = r, H_gg = Q_g diag(shrink) Q_gᵀ W_g
-                h = -((qg[None] * shrink[:, None, :]) @ qg.T) * wg
-                h[:, np.arange(len(wg)), np.arange(len(wg))] += 1.0
-                e = np.linalg.solve(h, rg[..., None])[..., 0]
+            block = self._block(k)
+            m = len(wg)
+            if m < n:  # (I − H_gg) e = r, H_gg = Q_g diag(shrink) Q_gᵀ W_g; symmetric as W^½ (I − H_gg) W^-½
+                root = np.sqrt(wg)
+                for j in range(len(lambdas)):
+                    h = -(block * shrink[j]) @ block.T
+                    h[np.arange(m), np.arange(m)] += 1.0
+                    sse[k, j] = np.sum((_spd_solve(h, root * rg[j]) / root) ** 2)
             else:  # e = r + Q_g (diag(1 + λμ) − Q_gᵀ W_g Q_g)⁻¹ Q_gᵀ W_g r
-                m = qg.T @ (wg[:, None] * qg)
-                kmat = -np.broadcast_to(m, (len(lambdas), n, n)).copy()
-                kmat[:, np.arange(n), np.arange(n)] += 1.0 + np.outer(lambdas, self.mu)
-                x = np.linalg.solve(kmat, ((rg * wg) @ qg)[..., None])[..., 0]
-                e = rg + x @ qg.T
-            sse[k] = np.sum(e * e, axis=1)
+                rhs = (rg * wg) @ qg
+                for j in range(len(lambdas)):
+                    kmat = -block
+                    kmat[np.arange(n), np.arange(n)] += 1.0 + lambdas[j] * self.mu
+                    e = rg[j] + qg @ _spd_solve(kmat, rhs[j])
+                    sse[k, j] = np.sum(e * e)
         return sse, shrink @ self.lever
+
+
+def _spd_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a⁻¹ b for a symmetric positive definite ``a``, by LAPACK's Cholesky
+    solver; by LU where rounding leaves it indefinite."""
+    _, x, info = scipy.linalg.lapack.dposv(a.T, b, lower=1)
+    if info != 0:
+        return np.linalg.solve(a, b)
+    return x

@@ -25,20 +25,38 @@ def gram(jac: sp.csr_matrix, weights: np.ndarray | None = None) -> np.ndarray:
 def _gram(indptr, indices, data, n, weights):  # pragma: no cover (compiled)
     out = np.zeros((n, n))
     weighted = len(weights) > 0
+    width = 0
+    for row in range(len(indptr) - 1):
+        width = max(width, indptr[row + 1] - indptr[row])
+    cols = np.empty(width, np.int64)
+    vals = np.empty(width)
     for row in range(len(indptr) - 1):
         start, end = indptr[row], indptr[row + 1]
+        m = end - start
         scale = weights[row] if weighted else 1.0
-        for a in range(start, end):
-            ca, va = indices[a], data[a] * scale  # w·J_a: each product takes the row's weight once
-            out[ca, ca] += va * data[a]
-            for b in range(a + 1, end):
-                cb, p = indices[b], va * data[b]
-                if cb > ca:
-                    out[ca, cb] += p
-                elif cb < ca:
-                    out[cb, ca] += p
-                else:  # the same column twice in a row: (va + vb)² has 2·va·vb
-                    out[ca, ca] += 2.0 * p
+        # The row copied out, sorted by column (stable insertion sort: rows
+        # mostly come sorted): every product then lands in the upper triangle
+        # of one row of ``out``, without a branch on the triangle per product.
+        for a in range(m):
+            c, x = indices[start + a], data[start + a]
+            k = a
+            while k > 0 and cols[k - 1] > c:
+                cols[k] = cols[k - 1]
+                vals[k] = vals[k - 1]
+                k -= 1
+            cols[k] = c
+            vals[k] = x
+        for a in range(m):
+            ca = cols[a]
+            va = vals[a] * scale  # w·J_a: each product takes the row's weight once
+            orow = out[ca]
+            orow[ca] += va * vals[a]
+            for b in range(a + 1, m):
+                cb = cols[b]
+                if cb == ca:  # the same column twice in a row: (va + vb)² has 2·va·vb
+                    orow[cb] += 2.0 * (va * vals[b])
+                else:
+                    orow[cb] += va * vals[b]
     for i in range(n):
         for j in range(i + 1, n):
             out[j, i] = out[i, j]

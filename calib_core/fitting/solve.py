@@ -160,17 +160,24 @@ def _assemble(model: CameraModel, poses: np.ndarray, data: Data, settings: Solve
     v = np.concatenate(blocks_v, axis=2).reshape(2 * n, -1)
     width = c.shape[1]
     n_cols = n_model + (0 if settings.fix_poses else 6 * data.n_views)
-    jac = sp.csr_matrix((v.ravel(), c.ravel(), np.arange(0, 2 * n * width + 1, width)), shape=(2 * n, n_cols))
+    indptr, indices, values = np.arange(0, 2 * n * width + 1, width), c.ravel(), v.ravel()
     prior = None if settings.fix_model else model.prior()
     if prior is not None:
+        # The prior rows (on model columns only) appended to the CSR arrays as
+        # they are: no sparse stacking per iteration.
         pr, pj = prior
         pj = sp.csr_matrix(pj)
+        p_ptr, p_idx, p_val = pj.indptr, pj.indices, pj.data
         if settings.free_params is not None:
-            pj = pj[:, np.flatnonzero(settings.free_params)]
-        if not settings.fix_poses:
-            pj = sp.hstack([pj, sp.csr_matrix((pj.shape[0], 6 * data.n_views))]).tocsr()
+            column = model_columns(model.n_params, settings.free_params)[p_idx]
+            kept = column >= 0
+            row = np.repeat(np.arange(len(p_ptr) - 1), np.diff(p_ptr))
+            p_ptr = np.concatenate([[0], np.cumsum(np.bincount(row[kept], minlength=len(p_ptr) - 1))])
+            p_idx, p_val = column[kept], p_val[kept]
+        indptr = np.concatenate([indptr, p_ptr[1:] + indptr[-1]])
+        indices, values = np.concatenate([indices, p_idx]), np.concatenate([values, p_val])
         r = np.concatenate([r, pr])
-        jac = sp.vstack([jac, pj]).tocsr()
+    jac = sp.csr_matrix((values, indices, indptr), shape=(len(indptr) - 1, n_cols))
     return r, jac
 
 

@@ -106,10 +106,22 @@ def linearised_view_errors(model: CameraModel, poses: np.ndarray, data: Data, sc
         rhs = at @ rv
         if held_part is not None:
             rhs -= (cross - held_part[1]) @ held_part[2]
-        steps[v] = scipy.linalg.solve(s - share + ridge, rhs, assume_a="pos", check_finite=False)
+        steps[v] = _spd_solve(s - share + ridge, rhs)
         e = rv + a @ steps[v]
         if held_part is not None:
             e += held_part[0] @ held_part[2]
         e -= b @ np.linalg.solve(nvv, b.T @ e)
         errors[v] = float(np.sum(e[weight[span]] ** 2))
     return ViewErrors(errors, steps)
+
+
+def _spd_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a⁻¹ b for a symmetric positive definite ``a`` (overwritten): LAPACK's
+    Cholesky solver, as ``scipy.linalg.solve(assume_a="pos")`` calls it,
+    without its condition estimate."""
+    _, x, info = scipy.linalg.lapack.dposv(a, b, lower=0, overwrite_a=1)
+    if info > 0:
+        raise np.linalg.LinAlgError("the fit without this view is undetermined (not positive definite)")
+    if info < 0:
+        raise ValueError(f"dposv: illegal argument {-info}")
+    return x

@@ -159,11 +159,14 @@ class BSplineField:
         return self._combine(d.w, d.cols).reshape(uv.shape)
 
     def evaluate(self, uv: np.ndarray):
-        """Offsets (N, 2), their Jacobian (N, 2, 2) ``[[Δx_u, Δx_v], [Δy_u, Δy_v]]``, and the design."""
-        d = self.design(uv, derivative=True)
-        w_u, w_v = d.derivative_weights()
-        jac = np.stack([self._combine(w_u, d.cols), self._combine(w_v, d.cols)], axis=-1)
-        return self._combine(d.w, d.cols), jac, d
+        """Offsets (N, 2), their Jacobian (N, 2, 2) ``[[Δx_u, Δx_v], [Δy_u, Δy_v]]``, and the
+        design (without derivative weights), in one compiled pass."""
+        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+        u, v = np.ascontiguousarray(uv[:, 0]), np.ascontiguousarray(uv[:, 1])
+        cols, w, offset, jac = bspline_kernel.evaluate_rows(
+            self.knots_u, self.knots_v, u, v, find_span(self.knots_u, u), find_span(self.knots_v, v), self.n_v,
+            np.ascontiguousarray(self.control.reshape(-1, 2)))
+        return offset, jac, Design(cols, w)
 
     def _combine(self, weights: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """Σ_k weights[n, k] · control[cols[n, k]] per component, (N, 2)."""

@@ -98,3 +98,43 @@ def combine(weights, cols, control):  # pragma: no cover (compiled)
         out[p, 0] = x
         out[p, 1] = y
     return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")  # inf/nan as numpy gives, not an exception
+def evaluate_rows(tu, tv, u, v, span_u, span_v, n_v, control):  # pragma: no cover (compiled)
+    """(cols, w, offset, jac): ``design_rows`` (no derivative weights kept) and,
+    in the same pass, what ``combine`` gives of the values and of the u and v
+    derivative weights, summed in the same order: offsets (N, 2) and their
+    Jacobian (N, 2, 2) ``[[Δx_u, Δx_v], [Δy_u, Δy_v]]``."""
+    n = len(u)
+    cols = np.empty((n, 16), dtype=np.int64)
+    w = np.empty((n, 16))
+    offset = np.empty((n, 2))
+    jac = np.empty((n, 2, 2))
+    for p in range(n):
+        bu = _cubic(tu, u[p], span_u[p])
+        bv = _cubic(tv, v[p], span_v[p])
+        iu0, iv0 = span_u[p] - 3, span_v[p] - 3
+        x = y = xu = yu = xv = yv = 0.0
+        for a in range(4):
+            for b in range(4):
+                k = 4 * a + b
+                c = (iu0 + a) * n_v + iv0 + b
+                cols[p, k] = c
+                wk = bu[a] * bv[b]
+                wu = bu[4 + a] * bv[b]
+                wv = bu[a] * bv[4 + b]
+                w[p, k] = wk
+                x += wk * control[c, 0]
+                y += wk * control[c, 1]
+                xu += wu * control[c, 0]
+                yu += wu * control[c, 1]
+                xv += wv * control[c, 0]
+                yv += wv * control[c, 1]
+        offset[p, 0] = x
+        offset[p, 1] = y
+        jac[p, 0, 0] = xu
+        jac[p, 1, 0] = yu
+        jac[p, 0, 1] = xv
+        jac[p, 1, 1] = yv
+    return cols, w, offset, jac

@@ -26,6 +26,7 @@ seen.
 """
 from __future__ import annotations
 
+import functools
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -152,6 +153,12 @@ class _Component:
             self.blocks[k] = block
         return block
 
+    def _system(self, block: np.ndarray, lam: float) -> np.ndarray:
+        """diag(1 + λμ) − Q_gᵀ W_g Q_g, a new array."""
+        a = -block
+        a[np.diag_indices(len(a))] += 1.0 + lam * self.mu
+        return a
+
     def scores(self, lambdas: np.ndarray):
         """((G, L) left-out sum of squares, (L,) effective parameters).
         Each (group, λ) is one symmetric positive definite solve (Cholesky)."""
@@ -167,23 +174,36 @@ class _Component:
             if m < n:  # (I − H_gg) e = r, H_gg = Q_g diag(shrink) Q_gᵀ W_g; symmetric as W^½ (I − H_gg) W^-½
                 root = np.sqrt(wg)
                 for j in range(len(lambdas)):
-                    h = -(block * shrink[j]) @ block.T
+                    # I − (W^½ Q_g diag(shrink)^½)(…)ᵀ: its lower triangle by a rank-k update (BLAS syrk)
+                    scaled = block * np.sqrt(shrink[j])
+                    h = scipy.linalg.blas.dsyrk(-1.0, scaled, lower=1)
                     h[np.arange(m), np.arange(m)] += 1.0
-                    sse[k, j] = np.sum((_spd_solve(h, root * rg[j]) / root) ** 2)
+                    sse[k, j] = np.sum((_spd_solve_lower(h, root * rg[j]) / root) ** 2)
             else:  # e = r + Q_g (diag(1 + λμ) − Q_gᵀ W_g Q_g)⁻¹ Q_gᵀ W_g r
                 rhs = (rg * wg) @ qg
                 for j in range(len(lambdas)):
-                    kmat = -block
-                    kmat[np.arange(n), np.arange(n)] += 1.0 + lambdas[j] * self.mu
-                    e = rg[j] + qg @ _spd_solve(kmat, rhs[j])
+                    e = rg[j] + qg @ _spd_solve(functools.partial(self._system, block, lambdas[j]), rhs[j])
                     sse[k, j] = np.sum(e * e)
         return sse, shrink @ self.lever
 
 
-def _spd_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a⁻¹ b for a symmetric positive definite ``a``, by LAPACK's Cholesky
-    solver; by LU where rounding leaves it indefinite."""
-    _, x, info = scipy.linalg.lapack.dposv(a.T, b, lower=1)
+def _spd_solve(build, b: np.ndarray) -> np.ndarray:
+    """a⁻¹ b for the symmetric positive definite ``a = build()``, factorised in
+    place by LAPACK's Cholesky solver (its lower triangle: the transposed
+    array's memory is in LAPACK's order, so nothing is copied); by LU on a
+    fresh copy where rounding leaves it indefinite."""
+    a = build()
+    _, x, info = scipy.linalg.lapack.dposv(a.T, b, lower=1, overwrite_a=1)
     if info != 0:
-        return np.linalg.solve(a, b)
+        return np.linalg.solve(build(), b)
+    return x
+
+
+def _spd_solve_lower(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a⁻¹ b for a symmetric positive definite ``a`` of which only the lower
+    triangle is filled (Fortran order, as BLAS's syrk returns it)."""
+    _, x, info = scipy.linalg.lapack.dposv(a, b, lower=1, overwrite_a=0)
+    if info != 0:
+        full = np.tril(a) + np.tril(a, -1).T
+        return np.linalg.solve(full, b)
     return x

@@ -90,8 +90,13 @@ def cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge: 
     order = np.argsort(groups, kind="stable")
     counts = np.bincount(groups)
     n = b.shape[1]
-    parts = [_Component(b, weights[:, c], gauge[c::2, c * n : (c + 1) * n].toarray(), r, response[:, c], ridge,
-                        order, counts) for c in range(2)]
+    parts = []
+    basis = None
+    for c in range(2):
+        g = gauge[c::2, c * n : (c + 1) * n].toarray()
+        if basis is None or not np.array_equal(g, basis[0]):  # both components' gauge rows are usually the same
+            basis = (g, *_null_space(g, r))
+        parts.append(_Component(b, weights[:, c], basis[1], basis[2], response[:, c], ridge, order, counts))
 
     # The two components are independent problems: one per core.
     def evaluate(lams: np.ndarray):
@@ -113,19 +118,24 @@ def cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge: 
                    np.concatenate([dof, dof_f])[keep])
 
 
+def _null_space(g: np.ndarray, r: np.ndarray):
+    """(Z, ZᵀRZ): an orthonormal basis of the gauge rows' null space and the
+    smoothness operator R there. The gauge rows hold exactly: the controls
+    live in that null space. As heavily weighted rows instead they made S so
+    ill-conditioned that the left-out residuals lost 8 digits."""
+    z = np.linalg.qr(g.T, mode="complete")[0][:, np.linalg.matrix_rank(g):]
+    return z, z.T @ r @ z
+
+
 class _Component:
     """One field component's control-point problem, prepared for scoring any λ."""
 
-    def __init__(self, b, w, g, r, d, ridge, order, counts):
-        # The gauge rows hold exactly: the controls live in their null space
-        # (Z, orthonormal). As heavily weighted rows instead they made S so
-        # ill-conditioned that the left-out residuals lost 8 digits.
-        z = np.linalg.qr(g.T, mode="complete")[0][:, np.linalg.matrix_rank(g):]
+    def __init__(self, b, w, z, rz, d, ridge, order, counts):
+        """z: the gauge's null space (``_null_space``), rz: the smoothness operator in it."""
         # BᵀWB from B's sparse rows, then into the null space: Zᵀ(BᵀWB)Z costs
         # two n³ products where (BZ)ᵀW(BZ) cost N·n².
         btwb = z.T @ gram(b, w) @ z
         s = btwb + max(ridge, 1e-9) * np.eye(z.shape[1])
-        rz = z.T @ r @ z
         try:
             mu, v = scipy.linalg.eigh(rz, s)
         except np.linalg.LinAlgError:

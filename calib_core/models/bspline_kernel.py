@@ -138,3 +138,28 @@ def evaluate_rows(tu, tv, u, v, span_u, span_v, n_v, control):  # pragma: no cov
         jac[p, 0, 1] = xv
         jac[p, 1, 1] = yv
     return cols, w, offset, jac
+
+
+@njit(cache=True, nogil=True)
+def hybrid_rows(cols, vals, a, design_cols, design_w, first, n_controls):  # pragma: no cover (compiled)
+    """A field over a core: the parameter Jacobian's columns and values (N, 2,
+    2c + 16) from the core's (``cols``, ``vals``: (N, 2, c)) and the field's
+    design. Each row mixes both of the core's rows through ∂uv/∂p = ``a``
+    (N, 2, 2): the core's row-0 entries times a[:, :, 0], then its row-1
+    entries times a[:, :, 1], then the 16 controls of the row's component
+    (columns from ``first``)."""
+    n, _, c = cols.shape
+    out_cols = np.empty((n, 2, 2 * c + 16), dtype=np.int64)
+    out_vals = np.empty((n, 2, 2 * c + 16))
+    for p in range(n):
+        for r in range(2):
+            for j in range(c):
+                out_cols[p, r, j] = cols[p, 0, j]
+                out_cols[p, r, c + j] = cols[p, 1, j]
+                out_vals[p, r, j] = a[p, r, 0] * vals[p, 0, j]
+                out_vals[p, r, c + j] = a[p, r, 1] * vals[p, 1, j]
+            offset = first + r * n_controls
+            for k in range(16):
+                out_cols[p, r, 2 * c + k] = offset + design_cols[p, k]
+                out_vals[p, r, 2 * c + k] = design_w[p, k]
+    return out_cols, out_vals

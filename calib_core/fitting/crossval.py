@@ -70,11 +70,12 @@ def linearised_view_errors(model: CameraModel, poses: np.ndarray, data: Data, sc
     else:
         r, jac = residuals_and_jacobian(model, poses, data)
     n_model = jac.shape[1] - 6 * data.n_views
-    s = gram(jac[:, :n_model].tocsr())  # prior rows included: they stay when a view leaves
+    model_cols = jac[:, :n_model].tocsr()
+    s = gram(model_cols)  # prior rows included: they stay when a view leaves
     order = np.argsort(data.view_index, kind="stable")
     rows = np.column_stack([2 * order, 2 * order + 1]).ravel()  # the points' rows, view by view
-    by_view = jac[rows].tocsr()
-    pose_block = by_view[:, n_model:].toarray()
+    by_view = model_cols[rows]  # the model's columns, sparse (a corner touches few of a field's controls)
+    pose_block = jac[rows][:, n_model:].toarray()
     held_block = None if jc is None else jc[rows].toarray()
     r_view = r[rows]
     weight = np.repeat(np.ones(data.n_points, dtype=bool) if scored is None else scored, 2)[rows]
@@ -83,31 +84,44 @@ def linearised_view_errors(model: CameraModel, poses: np.ndarray, data: Data, sc
     cross = 0.0
     for v in range(data.n_views):
         span = slice(bounds[v], bounds[v + 1])
-        a = by_view[span, :n_model].toarray()
+        a = by_view[span]
+        at = a.T.tocsr()
         b = pose_block[span, 6 * v : 6 * v + 6]
         nvv = b.T @ b
-        nmv = a.T @ b
+        nmv = at @ b
         coupling = nmv @ np.linalg.solve(nvv, nmv.T)
         s -= coupling
         held_part = None  # C_v, T_v and δc of the view
         if held_block is not None and held_moves is not None:
             c = held_block[span]
-            t = a.T @ c - nmv @ np.linalg.solve(nvv, b.T @ c)
+            t = at @ c - nmv @ np.linalg.solve(nvv, b.T @ c)
             cross = cross + t
             held_part = (c, t, held_moves[v])
-        parts.append((span, a, b, nvv, a.T @ a - coupling, held_part))
+        parts.append((span, a, at, b, nvv, gram(a) - coupling, held_part))
     errors = np.zeros(data.n_views)
     steps = np.zeros((data.n_views, n_model))
     ridge = 1e-12 * np.trace(s) / max(n_model, 1) * np.eye(n_model)
-    for v, (span, a, b, nvv, share, held_part) in enumerate(parts):
+    for v, (span, a, at, b, nvv, share, held_part) in enumerate(parts):
         rv = r_view[span]
-        rhs = a.T @ rv
+        rhs = at @ rv
         if held_part is not None:
             rhs -= (cross - held_part[1]) @ held_part[2]
-        steps[v] = scipy.linalg.solve(s - share + ridge, rhs, assume_a="pos", check_finite=False)
+        steps[v] = _spd_solve(s - share + ridge, rhs)
         e = rv + a @ steps[v]
         if held_part is not None:
             e += held_part[0] @ held_part[2]
         e -= b @ np.linalg.solve(nvv, b.T @ e)
         errors[v] = float(np.sum(e[weight[span]] ** 2))
     return ViewErrors(errors, steps)
+
+
+def _spd_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a⁻¹ b for a symmetric positive definite ``a`` (overwritten): LAPACK's
+    Cholesky solver, as ``scipy.linalg.solve(assume_a="pos")`` calls it,
+    without its condition estimate."""
+    _, x, info = scipy.linalg.lapack.dposv(a, b, lower=0, overwrite_a=1)
+    if info > 0:
+        raise np.linalg.LinAlgError("the fit without this view is undetermined (not positive definite)")
+    if info < 0:
+        raise ValueError(f"dposv: illegal argument {-info}")
+    return x

@@ -4,6 +4,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .gram import gram
+
 
 def rmse(res: np.ndarray) -> float:
     """Per-point (Euclidean) RMS, what ``cv2.calibrateCamera`` returns: sqrt(mean(dx² + dy²))."""
@@ -48,7 +50,7 @@ def design_diagnostics(design: sp.csr_matrix, weights: np.ndarray, regulariser: 
     reg = (regulariser.T @ regulariser).toarray()
     conds = []
     for k in range(weights.shape[1]):
-        normal = b.T @ (weights[:, k : k + 1] * b) + reg
+        normal = gram(design, weights[:, k]) + reg  # BᵀWB from B's sparse rows
         conds.append(float(np.linalg.cond(normal)))
     return {
         "rank": int(np.sum(sv > tol)),

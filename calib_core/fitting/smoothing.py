@@ -26,12 +26,15 @@ seen.
 """
 from __future__ import annotations
 
+import functools
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
+
+from .gram import gram
 
 # Up to 1e6: over a parametric core that already fits the lens the field is
 # wanted nearly flat; capped at 1e3 it was held at the edge.
@@ -87,8 +90,13 @@ def cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge: 
     order = np.argsort(groups, kind="stable")
     counts = np.bincount(groups)
     n = b.shape[1]
-    parts = [_Component(b, weights[:, c], gauge[c::2, c * n : (c + 1) * n].toarray(), r, response[:, c], ridge,
-                        order, counts) for c in range(2)]
+    parts = []
+    basis = None
+    for c in range(2):
+        g = gauge[c::2, c * n : (c + 1) * n].toarray()
+        if basis is None or not np.array_equal(g, basis[0]):  # both components' gauge rows are usually the same
+            basis = (g, *_null_space(g, r))
+        parts.append(_Component(b, weights[:, c], basis[1], basis[2], response[:, c], ridge, order, counts))
 
     # The two components are independent problems: one per core.
     def evaluate(lams: np.ndarray):
@@ -110,18 +118,24 @@ def cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge: 
                    np.concatenate([dof, dof_f])[keep])
 
 
+def _null_space(g: np.ndarray, r: np.ndarray):
+    """(Z, ZᵀRZ): an orthonormal basis of the gauge rows' null space and the
+    smoothness operator R there. The gauge rows hold exactly: the controls
+    live in that null space. As heavily weighted rows instead they made S so
+    ill-conditioned that the left-out residuals lost 8 digits."""
+    z = np.linalg.qr(g.T, mode="complete")[0][:, np.linalg.matrix_rank(g):]
+    return z, z.T @ r @ z
+
+
 class _Component:
     """One field component's control-point problem, prepared for scoring any λ."""
 
-    def __init__(self, b, w, g, r, d, ridge, order, counts):
-        # The gauge rows hold exactly: the controls live in their null space
-        # (Z, orthonormal). As heavily weighted rows instead they made S so
-        # ill-conditioned that the left-out residuals lost 8 digits.
-        z = np.linalg.qr(g.T, mode="complete")[0][:, np.linalg.matrix_rank(g):]
-        bz = np.asarray(b @ z)
-        btwb = bz.T @ (w[:, None] * bz)
+    def __init__(self, b, w, z, rz, d, ridge, order, counts):
+        """z: the gauge's null space (``_null_space``), rz: the smoothness operator in it."""
+        # BᵀWB from B's sparse rows, then into the null space: Zᵀ(BᵀWB)Z costs
+        # two n³ products where (BZ)ᵀW(BZ) cost N·n².
+        btwb = z.T @ gram(b, w) @ z
         s = btwb + max(ridge, 1e-9) * np.eye(z.shape[1])
-        rz = z.T @ r @ z
         try:
             mu, v = scipy.linalg.eigh(rz, s)
         except np.linalg.LinAlgError:
@@ -130,14 +144,34 @@ class _Component:
             s += 1e-9 * np.trace(btwb) / len(s) * np.eye(len(s))
             mu, v = scipy.linalg.eigh(rz, s)
         self.mu = np.maximum(mu, 0.0)
-        self.q = (bz @ v)[order]  # (N, n') rows in the eigenbasis, grouped by view
+        self.q = np.asarray(b[order] @ (z @ v))  # (N, n') rows in the eigenbasis, grouped by view
         self.d, self.w = d[order], w[order]
         self.rhs = self.q.T @ (self.w * self.d)
         self.lever = np.einsum("ij,ij->j", self.q, self.w[:, None] * self.q)  # vᵢᵀ BᵀWB vᵢ
         self.bounds = np.concatenate([[0], np.cumsum(counts)])
+        # Per group, the λ-free part of its system (built on the first scoring, kept for the refinement's).
+        self.blocks: list[np.ndarray | None] = [None] * len(counts)
+
+    def _block(self, k: int) -> np.ndarray:
+        """Group k's λ-free matrix: W_g^½ Q_g (rows, n') when the group has
+        fewer rows than unknowns, else Q_gᵀ W_g Q_g (n', n')."""
+        block = self.blocks[k]
+        if block is None:
+            rows = slice(self.bounds[k], self.bounds[k + 1])
+            qg, wg = self.q[rows], self.w[rows]
+            block = np.sqrt(wg)[:, None] * qg if len(wg) < len(self.mu) else qg.T @ (wg[:, None] * qg)
+            self.blocks[k] = block
+        return block
+
+    def _system(self, block: np.ndarray, lam: float) -> np.ndarray:
+        """diag(1 + λμ) − Q_gᵀ W_g Q_g, a new array."""
+        a = -block
+        a[np.diag_indices(len(a))] += 1.0 + lam * self.mu
+        return a
 
     def scores(self, lambdas: np.ndarray):
-        """((G, L) left-out sum of squares, (L,) effective parameters)."""
+        """((G, L) left-out sum of squares, (L,) effective parameters).
+        Each (group, λ) is one symmetric positive definite solve (Cholesky)."""
         shrink = 1.0 / (1.0 + np.outer(lambdas, self.mu))  # (L, n')
         resid = self.d[None, :] - (shrink * self.rhs) @ self.q.T  # (L, N) residuals of the full fit
         n = len(self.mu)
@@ -145,15 +179,41 @@ class _Component:
         for k in range(len(sse)):
             rows = slice(self.bounds[k], self.bounds[k + 1])
             qg, wg, rg = self.q[rows], self.w[rows], resid[:, rows]
-            if len(wg) < n:  # (I − H_gg) e = r, H_gg = Q_g diag(shrink) Q_gᵀ W_g
-                h = -((qg[None] * shrink[:, None, :]) @ qg.T) * wg
-                h[:, np.arange(len(wg)), np.arange(len(wg))] += 1.0
-                e = np.linalg.solve(h, rg[..., None])[..., 0]
+            block = self._block(k)
+            m = len(wg)
+            if m < n:  # (I − H_gg) e = r, H_gg = Q_g diag(shrink) Q_gᵀ W_g; symmetric as W^½ (I − H_gg) W^-½
+                root = np.sqrt(wg)
+                for j in range(len(lambdas)):
+                    # I − (W^½ Q_g diag(shrink)^½)(…)ᵀ: its lower triangle by a rank-k update (BLAS syrk)
+                    scaled = block * np.sqrt(shrink[j])
+                    h = scipy.linalg.blas.dsyrk(-1.0, scaled, lower=1)
+                    h[np.arange(m), np.arange(m)] += 1.0
+                    sse[k, j] = np.sum((_spd_solve_lower(h, root * rg[j]) / root) ** 2)
             else:  # e = r + Q_g (diag(1 + λμ) − Q_gᵀ W_g Q_g)⁻¹ Q_gᵀ W_g r
-                m = qg.T @ (wg[:, None] * qg)
-                kmat = -np.broadcast_to(m, (len(lambdas), n, n)).copy()
-                kmat[:, np.arange(n), np.arange(n)] += 1.0 + np.outer(lambdas, self.mu)
-                x = np.linalg.solve(kmat, ((rg * wg) @ qg)[..., None])[..., 0]
-                e = rg + x @ qg.T
-            sse[k] = np.sum(e * e, axis=1)
+                rhs = (rg * wg) @ qg
+                for j in range(len(lambdas)):
+                    e = rg[j] + qg @ _spd_solve(functools.partial(self._system, block, lambdas[j]), rhs[j])
+                    sse[k, j] = np.sum(e * e)
         return sse, shrink @ self.lever
+
+
+def _spd_solve(build, b: np.ndarray) -> np.ndarray:
+    """a⁻¹ b for the symmetric positive definite ``a = build()``, factorised in
+    place by LAPACK's Cholesky solver (its lower triangle: the transposed
+    array's memory is in LAPACK's order, so nothing is copied); by LU on a
+    fresh copy where rounding leaves it indefinite."""
+    a = build()
+    _, x, info = scipy.linalg.lapack.dposv(a.T, b, lower=1, overwrite_a=1)
+    if info != 0:
+        return np.linalg.solve(build(), b)
+    return x
+
+
+def _spd_solve_lower(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a⁻¹ b for a symmetric positive definite ``a`` of which only the lower
+    triangle is filled (Fortran order, as BLAS's syrk returns it)."""
+    _, x, info = scipy.linalg.lapack.dposv(a, b, lower=1, overwrite_a=0)
+    if info != 0:
+        full = np.tril(a) + np.tril(a, -1).T
+        return np.linalg.solve(full, b)
+    return x

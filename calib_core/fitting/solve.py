@@ -19,6 +19,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg
+from numba import njit
 
 from ..models import camera
 from ..models.base import CameraModel
@@ -141,37 +142,78 @@ def _assemble(model: CameraModel, poses: np.ndarray, data: Data, settings: Solve
     pc = camera.transform(poses, data.view_index, data.object_points)
     uv, d_pc, cols, vals = model.project(pc, jacobian=True)
     r = (uv - data.image_points).ravel()
-    n = len(pc)
     n_model = 0
-    blocks_c, blocks_v = [], []
+    column = np.zeros(0, dtype=np.int64)
     if not settings.fix_model:
         column = model_columns(model.n_params, settings.free_params)
         n_model = int(column.max()) + 1 if len(column) else 0
-        cols = column[cols]
-        cols, vals = drop_held(cols, vals)
-        blocks_c.append(cols)
-        blocks_v.append(vals)
-    if not settings.fix_poses:
-        d_pose = d_pc @ camera.d_transform(pc)  # (N, 2, 6)
-        pose_cols = n_model + 6 * data.view_index[:, None] + np.arange(6)
-        blocks_c.append(np.broadcast_to(pose_cols[:, None, :], (n, 2, 6)))
-        blocks_v.append(d_pose)
-    c = np.concatenate(blocks_c, axis=2).reshape(2 * n, -1)
-    v = np.concatenate(blocks_v, axis=2).reshape(2 * n, -1)
-    width = c.shape[1]
     n_cols = n_model + (0 if settings.fix_poses else 6 * data.n_views)
-    jac = sp.csr_matrix((v.ravel(), c.ravel(), np.arange(0, 2 * n * width + 1, width)), shape=(2 * n, n_cols))
+    indptr, indices, values = _rows(np.ascontiguousarray(cols, dtype=np.int64), np.ascontiguousarray(vals, dtype=np.float64),
+                                    column, np.ascontiguousarray(d_pc), pc, np.asarray(data.view_index, dtype=np.int64),
+                                    n_model, not settings.fix_model, not settings.fix_poses)
     prior = None if settings.fix_model else model.prior()
     if prior is not None:
+        # The prior rows (on model columns only) appended to the CSR arrays as
+        # they are: no sparse stacking per iteration.
         pr, pj = prior
         pj = sp.csr_matrix(pj)
+        p_ptr, p_idx, p_val = pj.indptr, pj.indices, pj.data
         if settings.free_params is not None:
-            pj = pj[:, np.flatnonzero(settings.free_params)]
-        if not settings.fix_poses:
-            pj = sp.hstack([pj, sp.csr_matrix((pj.shape[0], 6 * data.n_views))]).tocsr()
+            column = model_columns(model.n_params, settings.free_params)[p_idx]
+            kept = column >= 0
+            row = np.repeat(np.arange(len(p_ptr) - 1), np.diff(p_ptr))
+            p_ptr = np.concatenate([[0], np.cumsum(np.bincount(row[kept], minlength=len(p_ptr) - 1))])
+            p_idx, p_val = column[kept], p_val[kept]
+        indptr = np.concatenate([indptr, p_ptr[1:] + indptr[-1]])
+        indices, values = np.concatenate([indices, p_idx]), np.concatenate([values, p_val])
         r = np.concatenate([r, pr])
-        jac = sp.vstack([jac, pj]).tocsr()
+    jac = sp.csr_matrix((values, indices, indptr), shape=(len(indptr) - 1, n_cols))
     return r, jac
+
+
+@njit(cache=True, nogil=True)
+def _rows(cols, vals, column, d_pc, pc, view, n_model, with_model, with_poses):  # pragma: no cover (compiled)
+    """CSR arrays (indptr, indices, data) of the points' Jacobian rows: each
+    row's model entries (``cols``, ``vals``: (N, 2, w) from ``project``)
+    mapped to their columns (``column``; held parameters, −1, left out), then
+    its pose's six, ∂uv/∂Pc · ∂Pc/∂δ with ∂Pc/∂δ = [−[Pc]×  I₃]
+    (``camera.d_transform``)."""
+    n, _, w = cols.shape
+    indptr = np.empty(2 * n + 1, dtype=np.int64)
+    indptr[0] = 0
+    for i in range(n):
+        for r in range(2):
+            count = 6 if with_poses else 0
+            if with_model:
+                for k in range(w):
+                    if column[cols[i, r, k]] >= 0:
+                        count += 1
+            indptr[2 * i + r + 1] = indptr[2 * i + r] + count
+    indices = np.empty(indptr[-1], dtype=np.int32)
+    data = np.empty(indptr[-1])
+    for i in range(n):
+        x, y, z = pc[i, 0], pc[i, 1], pc[i, 2]
+        for r in range(2):
+            at = indptr[2 * i + r]
+            if with_model:
+                for k in range(w):
+                    c = column[cols[i, r, k]]
+                    if c >= 0:
+                        indices[at] = c
+                        data[at] = vals[i, r, k]
+                        at += 1
+            if with_poses:
+                a0, a1, a2 = d_pc[i, r, 0], d_pc[i, r, 1], d_pc[i, r, 2]
+                first = n_model + 6 * view[i]
+                for k in range(6):
+                    indices[at + k] = first + k
+                data[at] = a1 * -z + a2 * y
+                data[at + 1] = a0 * z + a2 * -x
+                data[at + 2] = a0 * -y + a1 * x
+                data[at + 3] = a0
+                data[at + 4] = a1
+                data[at + 5] = a2
+    return indptr, indices, data
 
 
 def drop_held(cols: np.ndarray, vals: np.ndarray):

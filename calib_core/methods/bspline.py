@@ -38,6 +38,7 @@ from ..fit_report import Restart, RestartFit
 from ..fitting import knots, metrics
 from ..fitting.choice import Candidate, choose
 from ..fitting.crossval import linearised_view_errors
+from ..fitting.gram import gram
 from ..fitting.init import initialise
 from ..fitting.knots import KnotSettings
 from ..fitting.metrics import design_diagnostics
@@ -250,8 +251,16 @@ def ideal_field_problem(init, data: Data, image_size, s: BSplineSettings):
 
     gauge_point = (float(intrinsics[2]), float(intrinsics[3]))
     footprint = ideal_footprint(init.model, intrinsics, s.base, image_size)
+    priors: dict[tuple[bytes, bytes], np.ndarray] = {}  # by knots: each grid's is asked for by every step on it
+
+    def prior_control(field):
+        key = (field.knots_u.tobytes(), field.knots_v.tobytes())
+        if key not in priors:
+            priors[key] = prior_field(init.model, intrinsics, field, s.base)
+        return priors[key]
+
     problem = FieldProblem(_padded_box(np.vstack([footprint, ideal[ok]])), footprint, gauge_point,
-                           lambda field: prior_field(init.model, intrinsics, field, s.base), samples, make)
+                           prior_control, samples, make)
     return problem, probe, init.poses, ok, f"more than {PINHOLE_MAX_ANGLE_DEG:.0f}° off axis (outside the pinhole base)"
 
 
@@ -298,14 +307,15 @@ def solve_control_points(field: BSplineField, problem: FieldProblem, lambda_reg:
     nc = field.n_controls
     b = field.design(samples).matrix(nc)
     d2 = field.bending()
-    reg = lambda_reg * sp.identity(nc) + lambda_smooth * (d2.T @ d2)
-    gauge = gauge_rows(field, problem.gauge_point) * GAUGE_WEIGHT
+    reg = lambda_reg * np.eye(nc) + lambda_smooth * (d2.T @ d2).toarray()
+    gauge = (gauge_rows(field, problem.gauge_point) * GAUGE_WEIGHT).toarray()
     p0 = problem.prior_control(field).reshape(nc, 2)
     control = np.zeros((nc, 2))
     for c in range(2):
         w = weights[:, c] / weights[:, c].mean()
         g = gauge[c::2, c * nc : (c + 1) * nc]
-        a = (b.T @ sp.diags(w) @ b + reg + g.T @ g + 1e-12 * sp.identity(nc)).toarray()
+        a = gram(b, w) + reg + g.T @ g  # BᵀWB by the compiled kernel from B's sparse rows
+        a[np.diag_indices(nc)] += 1e-12
         control[:, c] = np.linalg.solve(a, b.T @ (w * response[:, c]) + reg @ p0[:, c])
     return control
 

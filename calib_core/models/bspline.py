@@ -49,11 +49,9 @@ def gauge_rows(field: BSplineField, point: tuple[float, float]) -> sp.csr_matrix
     w_u, w_v = d.derivative_weights()
     u0, u1, v0, v1 = field.domain
     scale = 0.5 * ((u1 - u0) + (v1 - v0))
-    rows = []
-    for w in (d.w[0], scale * w_u[0], scale * w_v[0]):
-        row = sp.csr_matrix((w, d.cols[0], [0, 16]), shape=(1, nc))
-        rows += [sp.hstack([row, sp.csr_matrix((1, nc))]), sp.hstack([sp.csr_matrix((1, nc)), row])]
-    return sp.vstack(rows).tocsr()
+    values = np.repeat(np.stack([d.w[0], scale * w_u[0], scale * w_v[0]]), 2, axis=0)  # (6, 16)
+    cols = d.cols[0] + np.array([[0], [nc]] * 3)  # x rows on the first nc columns, y rows on the others
+    return sp.csr_matrix((values.ravel(), cols.ravel(), np.arange(0, 97, 16)), shape=(6, 2 * nc))
 
 
 def field_prior_rows(field: BSplineField, lambda_reg: float, lambda_smooth: float,

@@ -159,11 +159,14 @@ class BSplineField:
         return self._combine(d.w, d.cols).reshape(uv.shape)
 
     def evaluate(self, uv: np.ndarray):
-        """Offsets (N, 2), their Jacobian (N, 2, 2) ``[[Δx_u, Δx_v], [Δy_u, Δy_v]]``, and the design."""
-        d = self.design(uv, derivative=True)
-        w_u, w_v = d.derivative_weights()
-        jac = np.stack([self._combine(w_u, d.cols), self._combine(w_v, d.cols)], axis=-1)
-        return self._combine(d.w, d.cols), jac, d
+        """Offsets (N, 2), their Jacobian (N, 2, 2) ``[[Δx_u, Δx_v], [Δy_u, Δy_v]]``, and the
+        design (without derivative weights), in one compiled pass."""
+        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+        u, v = np.ascontiguousarray(uv[:, 0]), np.ascontiguousarray(uv[:, 1])
+        cols, w, offset, jac = bspline_kernel.evaluate_rows(
+            self.knots_u, self.knots_v, u, v, find_span(self.knots_u, u), find_span(self.knots_v, v), self.n_v,
+            np.ascontiguousarray(self.control.reshape(-1, 2)))
+        return offset, jac, Design(cols, w)
 
     def _combine(self, weights: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """Σ_k weights[n, k] · control[cols[n, k]] per component, (N, 2)."""
@@ -226,6 +229,13 @@ def _divided_second_difference(g: np.ndarray) -> sp.csr_matrix:
     return sp.csr_matrix((vals.ravel(), (rows, cols)), shape=(n - 2, n))
 
 
+# Bending operators already built, by knot vectors: a knot grid's is asked for by
+# every step that touches it (validation, control points, prior rows). Shared,
+# so read-only by convention: callers build new matrices from it.
+_BENDING: dict[tuple[bytes, bytes], sp.csr_matrix] = {}
+_BENDING_KEPT = 64
+
+
 def bending_operator(knots_u: np.ndarray, knots_v: np.ndarray) -> sp.csr_matrix:
     """[D_r; D_c]: second differences of the control grid along u and along v
     (flattened as ``i * n_v + j``), divided by the Greville spacings and
@@ -233,6 +243,16 @@ def bending_operator(knots_u: np.ndarray, knots_v: np.ndarray) -> sp.csr_matrix:
     approximates the bending energy ∫∫ (Δ_uu² + Δ_vv²) du dv of the field
     whatever the knot spacing. This keeps λ_smooth's meaning fixed when the
     knots change (the paper's plain second differences do not)."""
+    key = (np.asarray(knots_u, dtype=np.float64).tobytes(), np.asarray(knots_v, dtype=np.float64).tobytes())
+    op = _BENDING.get(key)
+    if op is None:
+        if len(_BENDING) >= _BENDING_KEPT:
+            _BENDING.clear()
+        op = _BENDING[key] = _bending_operator(knots_u, knots_v)
+    return op
+
+
+def _bending_operator(knots_u: np.ndarray, knots_v: np.ndarray) -> sp.csr_matrix:
     gu, gv = greville(knots_u), greville(knots_v)
     du, dv = _divided_second_difference(gu), _divided_second_difference(gv)
     # Weight of the other axis: √(half the spacing around each control value).

@@ -98,3 +98,68 @@ def combine(weights, cols, control):  # pragma: no cover (compiled)
         out[p, 0] = x
         out[p, 1] = y
     return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")  # inf/nan as numpy gives, not an exception
+def evaluate_rows(tu, tv, u, v, span_u, span_v, n_v, control):  # pragma: no cover (compiled)
+    """(cols, w, offset, jac): ``design_rows`` (no derivative weights kept) and,
+    in the same pass, what ``combine`` gives of the values and of the u and v
+    derivative weights, summed in the same order: offsets (N, 2) and their
+    Jacobian (N, 2, 2) ``[[Δx_u, Δx_v], [Δy_u, Δy_v]]``."""
+    n = len(u)
+    cols = np.empty((n, 16), dtype=np.int64)
+    w = np.empty((n, 16))
+    offset = np.empty((n, 2))
+    jac = np.empty((n, 2, 2))
+    for p in range(n):
+        bu = _cubic(tu, u[p], span_u[p])
+        bv = _cubic(tv, v[p], span_v[p])
+        iu0, iv0 = span_u[p] - 3, span_v[p] - 3
+        x = y = xu = yu = xv = yv = 0.0
+        for a in range(4):
+            for b in range(4):
+                k = 4 * a + b
+                c = (iu0 + a) * n_v + iv0 + b
+                cols[p, k] = c
+                wk = bu[a] * bv[b]
+                wu = bu[4 + a] * bv[b]
+                wv = bu[a] * bv[4 + b]
+                w[p, k] = wk
+                x += wk * control[c, 0]
+                y += wk * control[c, 1]
+                xu += wu * control[c, 0]
+                yu += wu * control[c, 1]
+                xv += wv * control[c, 0]
+                yv += wv * control[c, 1]
+        offset[p, 0] = x
+        offset[p, 1] = y
+        jac[p, 0, 0] = xu
+        jac[p, 1, 0] = yu
+        jac[p, 0, 1] = xv
+        jac[p, 1, 1] = yv
+    return cols, w, offset, jac
+
+
+@njit(cache=True, nogil=True)
+def hybrid_rows(cols, vals, a, design_cols, design_w, first, n_controls):  # pragma: no cover (compiled)
+    """A field over a core: the parameter Jacobian's columns and values (N, 2,
+    2c + 16) from the core's (``cols``, ``vals``: (N, 2, c)) and the field's
+    design. Each row mixes both of the core's rows through ∂uv/∂p = ``a``
+    (N, 2, 2): the core's row-0 entries times a[:, :, 0], then its row-1
+    entries times a[:, :, 1], then the 16 controls of the row's component
+    (columns from ``first``)."""
+    n, _, c = cols.shape
+    out_cols = np.empty((n, 2, 2 * c + 16), dtype=np.int64)
+    out_vals = np.empty((n, 2, 2 * c + 16))
+    for p in range(n):
+        for r in range(2):
+            for j in range(c):
+                out_cols[p, r, j] = cols[p, 0, j]
+                out_cols[p, r, c + j] = cols[p, 1, j]
+                out_vals[p, r, j] = a[p, r, 0] * vals[p, 0, j]
+                out_vals[p, r, c + j] = a[p, r, 1] * vals[p, 1, j]
+            offset = first + r * n_controls
+            for k in range(16):
+                out_cols[p, r, 2 * c + k] = offset + design_cols[p, k]
+                out_vals[p, r, 2 * c + k] = design_w[p, k]
+    return out_cols, out_vals

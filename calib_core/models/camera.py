@@ -8,6 +8,7 @@ camera frame, x right, y down, z forward. Poses are stored as (V, 6) arrays
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from scipy.spatial.transform import Rotation
 
 BASES = ("pinhole", "equidistant", "stereographic")
@@ -22,9 +23,28 @@ def rotate(rvecs: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def transform(poses: np.ndarray, view_index: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Camera-frame points (N, 3) for board points (N, 3) seen in views ``view_index`` (N,)."""
-    p = poses[view_index]
-    return rotate(p[:, :3], points) + p[:, 3:]
+    """Camera-frame points (N, 3) for board points (N, 3) seen in views ``view_index`` (N,):
+    each view's rotation matrix built once, applied by a compiled loop (the
+    same products and sums as rotating each point by its own rotation)."""
+    poses = np.asarray(poses, dtype=np.float64)
+    view_index = np.asarray(view_index)
+    if poses.ndim != 2 or view_index.ndim != 1 or len(view_index) and not 0 <= view_index.min() <= view_index.max() < len(poses):
+        p = poses[view_index]  # numpy's indexing: its wrap-around and its errors
+        return rotate(p[:, :3], points) + p[:, 3:]
+    matrices = Rotation.from_rotvec(poses[:, :3]).as_matrix().reshape(-1, 3, 3)
+    return _rigid(matrices, np.ascontiguousarray(poses[:, 3:]), np.asarray(view_index, dtype=np.int64),
+                  np.ascontiguousarray(points, dtype=np.float64))
+
+
+@njit(cache=True, nogil=True)
+def _rigid(matrices, translations, view, points):  # pragma: no cover (compiled)
+    out = np.empty((len(view), 3))
+    for i in range(len(view)):
+        v = view[i]
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        for r in range(3):
+            out[i, r] = matrices[v, r, 0] * x + matrices[v, r, 1] * y + matrices[v, r, 2] * z + translations[v, r]
+    return out
 
 
 def d_transform(pc: np.ndarray) -> np.ndarray:

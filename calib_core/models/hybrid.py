@@ -25,6 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import FormatError
+from . import bspline_kernel
 from .base import CameraModel, ParametricModel, Prior, core_inverse_start
 from .bspline import GAUGE_WEIGHT, field_prior_rows, recorded_regularisation
 from .bspline_basis import BSplineField
@@ -84,21 +85,11 @@ class HybridModel(CameraModel):
         p, d_xn, cols, vals = self.core.pixel_of(xn, jacobian=True)
         offset, grad, design = self.field.evaluate(p)
         a = grad + np.eye(2)
-        k, nc = self.core.n_params, self.field.n_controls
-        n, c = len(xn), cols.shape[2]
         # ∂(p + Δ(p))/∂θ = A ∂p/∂θ: each row mixes both rows of the core's
         # Jacobian, so both rows' columns appear in each.
-        core_cols = np.concatenate([cols[:, 0], cols[:, 1]], axis=1)  # (N, 2c)
-        core_vals = np.zeros((n, 2, 2 * c))
-        core_vals[:, :, :c] = a[:, :, 0:1] * vals[:, 0:1, :]
-        core_vals[:, :, c:] = a[:, :, 1:2] * vals[:, 1:2, :]
-        out_cols = np.empty((n, 2, 2 * c + 16), dtype=np.int64)
-        out_vals = np.empty((n, 2, 2 * c + 16))
-        out_cols[:, :, : 2 * c] = core_cols[:, None, :]
-        out_vals[:, :, : 2 * c] = core_vals
-        out_cols[:, 0, 2 * c :] = k + design.cols
-        out_cols[:, 1, 2 * c :] = k + nc + design.cols
-        out_vals[:, :, 2 * c :] = design.w[:, None, :]
+        out_cols, out_vals = bspline_kernel.hybrid_rows(
+            np.ascontiguousarray(cols, dtype=np.int64), np.ascontiguousarray(vals, dtype=np.float64),
+            np.ascontiguousarray(a), design.cols, design.w, self.core.n_params, self.field.n_controls)
         return p + offset, a @ d_xn, out_cols, out_vals
 
     def newton_start(self, uv: np.ndarray) -> np.ndarray:

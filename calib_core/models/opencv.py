@@ -18,6 +18,7 @@ from __future__ import annotations
 from typing import Any, Self
 
 import numpy as np
+from numba import njit
 
 from ..errors import FormatError
 from .base import ParametricModel
@@ -47,6 +48,54 @@ def tilt_matrix(tx: float, ty: float):
     return m, dm_x, dm_y
 
 
+@njit(cache=True, nogil=True, error_model="numpy")  # inf/nan as numpy gives, not an exception
+def _untilted(x, y, k, jacobian):  # pragma: no cover (compiled)
+    """``OpenCVModel.distort_normalised`` without the tilt, point by point, each
+    expression evaluated in the order of the array code below it."""
+    k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8], k[9], k[10], k[11]
+    n = len(x)
+    out = np.empty((n, 2))
+    j_p = np.empty((n if jacobian else 0, 2, 2))
+    j_k = np.zeros((n if jacobian else 0, 2, 12))
+    for i in range(n):
+        xi, yi = x[i], y[i]
+        r2 = xi * xi + yi * yi
+        r4, r6 = r2 * r2, r2 * r2 * r2
+        num = 1 + k1 * r2 + k2 * r4 + k3 * r6
+        inv_den = 1.0 / (1 + k4 * r2 + k5 * r4 + k6 * r6)
+        radial = num * inv_den
+        out[i, 0] = xi * radial + 2 * p1 * xi * yi + p2 * (r2 + 2 * xi * xi) + s1 * r2 + s2 * r4
+        out[i, 1] = yi * radial + p1 * (r2 + 2 * yi * yi) + 2 * p2 * xi * yi + s3 * r2 + s4 * r4
+        if not jacobian:
+            continue
+        d_num = k1 + 2 * k2 * r2 + 3 * k3 * r4
+        d_den = k4 + 2 * k5 * r2 + 3 * k6 * r4
+        d_radial = (d_num - radial * d_den) * inv_den
+        dxp_dr2 = xi * d_radial + p2 + s1 + 2 * s2 * r2
+        dyp_dr2 = yi * d_radial + p1 + s3 + 2 * s4 * r2
+        j_p[i, 0, 0] = radial + 2 * p1 * yi + 4 * p2 * xi + 2 * xi * dxp_dr2
+        j_p[i, 0, 1] = 2 * p1 * xi + 2 * yi * dxp_dr2
+        j_p[i, 1, 0] = 2 * p2 * yi + 2 * xi * dyp_dr2
+        j_p[i, 1, 1] = radial + 4 * p1 * yi + 2 * p2 * xi + 2 * yi * dyp_dr2
+        j_k[i, 0, 0] = xi * r2 * inv_den
+        j_k[i, 1, 0] = yi * r2 * inv_den
+        j_k[i, 0, 1] = xi * r4 * inv_den
+        j_k[i, 1, 1] = yi * r4 * inv_den
+        j_k[i, 0, 4] = xi * r6 * inv_den
+        j_k[i, 1, 4] = yi * r6 * inv_den
+        j_k[i, 0, 5] = -xi * radial * r2 * inv_den
+        j_k[i, 1, 5] = -yi * radial * r2 * inv_den
+        j_k[i, 0, 6] = -xi * radial * r4 * inv_den
+        j_k[i, 1, 6] = -yi * radial * r4 * inv_den
+        j_k[i, 0, 7] = -xi * radial * r6 * inv_den
+        j_k[i, 1, 7] = -yi * radial * r6 * inv_den
+        j_k[i, 0, 2], j_k[i, 0, 3] = 2 * xi * yi, r2 + 2 * xi * xi
+        j_k[i, 1, 2], j_k[i, 1, 3] = r2 + 2 * yi * yi, 2 * xi * yi
+        j_k[i, 0, 8], j_k[i, 0, 9] = r2, r4
+        j_k[i, 1, 10], j_k[i, 1, 11] = r2, r4
+    return out, j_p, j_k
+
+
 class OpenCVModel(ParametricModel):
     kind = "opencv"
 
@@ -64,6 +113,10 @@ class OpenCVModel(ParametricModel):
     def distort_normalised(self, xn: np.ndarray, jacobian: bool = False):
         """(x'', y'') (N, 2) of pinhole-normalised ``xn`` (N, 2); with ``jacobian``
         also ∂/∂xn (N, 2, 2) and ∂/∂coefficients (N, 2, 12; 14 with the tilt)."""
+        if len(self.coefficients) != 14:  # no tilt: one compiled pass, the same arithmetic as below
+            out, j_p, j_k = _untilted(np.ascontiguousarray(xn[:, 0]), np.ascontiguousarray(xn[:, 1]), self._full(),
+                                      jacobian)
+            return (out, j_p, j_k) if jacobian else out
         k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4, tx, ty = self._full()
         x, y = xn[:, 0], xn[:, 1]
         r2 = x * x + y * y

@@ -16,8 +16,8 @@ from .progress import StageProgress
 def register(sub) -> None:
     p = sub.add_parser("rig", help="calibrate several cameras fixed together (a stereo pair, a rig)",
                        description="Calibrate each camera from its own observations, then the cameras' poses "
-                                   "relative to the reference camera and the board's pose at every frame, from all "
-                                   "the corners together. Views of different cameras are matched by frame: a view's "
+                                   "relative to the reference camera, the board's pose at every frame and (unless "
+                                   "--hold-models) the cameras' models, from all the corners together. Views of different cameras are matched by frame: a view's "
                                    "\"frame\", else the last number in its name (left07.jpg and right07.jpg are "
                                    "frame 07). Writes freecal.rig/1 (docs/formats.md, section 4).")
     p.add_argument("observations", nargs="+", metavar="CAMERA.json",

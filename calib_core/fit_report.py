@@ -9,7 +9,6 @@ and ``from_json()``, which names the field of a malformed one in a FormatError.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -17,49 +16,7 @@ import numpy as np
 
 from .errors import FormatError
 from .fitting.metrics import summary
-
-
-# ---- reading JSON values --------------------------------------------------------
-def _object(raw: Any, where: str) -> dict[str, Any]:
-    if not isinstance(raw, dict):
-        raise FormatError(f"{where}: expected an object, got {raw!r}")
-    return raw
-
-
-def _required(doc: dict[str, Any], key: str, where: str) -> Any:
-    if key not in doc:
-        raise FormatError(f"{where}: missing {key!r}")
-    return doc[key]
-
-
-def _float(raw: Any, where: str) -> float:
-    """A number, or null for a figure that could not be measured (NaN)."""
-    if raw is None:
-        return math.nan
-    if not isinstance(raw, (int, float)) or isinstance(raw, bool):
-        raise FormatError(f"{where}: expected a number or null, got {raw!r}")
-    return float(raw)
-
-
-def _optional_float(raw: Any, where: str) -> float | None:
-    return None if raw is None else _float(raw, where)
-
-
-def _int(raw: Any, where: str) -> int:
-    if not isinstance(raw, int) or isinstance(raw, bool) or raw < 0:
-        raise FormatError(f"{where}: expected a whole number ≥ 0, got {raw!r}")
-    return raw
-
-
-def _str(raw: Any, where: str) -> str:
-    if not isinstance(raw, str):
-        raise FormatError(f"{where}: expected a string, got {raw!r}")
-    return raw
-
-
-def _number_json(x: float) -> float | None:
-    """JSON has no NaN: null instead."""
-    return float(x) if math.isfinite(x) else None
+from .json_fields import json_object, number, number_or_null, optional_number, required, text, whole
 
 
 # ---- metrics ---------------------------------------------------------------------
@@ -76,8 +33,8 @@ class FitMetrics:
     n_points: int
 
     def to_json(self) -> dict[str, Any]:
-        return {"rmse": _number_json(self.rmse), "rmse_axis": _number_json(self.rmse_axis),
-                "rmse_center": _number_json(self.rmse_center), "rmse_edge": _number_json(self.rmse_edge),
+        return {"rmse": number_or_null(self.rmse), "rmse_axis": number_or_null(self.rmse_axis),
+                "rmse_center": number_or_null(self.rmse_center), "rmse_edge": number_or_null(self.rmse_edge),
                 "n_points": self.n_points}
 
     @classmethod
@@ -88,13 +45,13 @@ class FitMetrics:
 
     @classmethod
     def from_json(cls, raw: Any) -> FitMetrics:
-        doc = _object(raw, "metrics")
+        doc = json_object(raw, "metrics")
 
         def figure(key: str) -> float:
-            return _float(_required(doc, key, "metrics"), f"metrics.{key}")
+            return number(required(doc, key, "metrics"), f"metrics.{key}")
 
         return cls(figure("rmse"), figure("rmse_axis"), figure("rmse_center"), figure("rmse_edge"),
-                   _int(_required(doc, "n_points", "metrics"), "metrics.n_points"))
+                   whole(required(doc, "n_points", "metrics"), "metrics.n_points"))
 
 
 # ---- diagnostics -----------------------------------------------------------------
@@ -111,18 +68,18 @@ class SolverReport:
 
     def to_json(self) -> dict[str, Any]:
         return {"iterations": self.iterations, "status": self.status, "message": self.message,
-                "cost": _number_json(self.cost), "n_unknowns": self.n_unknowns, "seconds": _number_json(self.seconds)}
+                "cost": number_or_null(self.cost), "n_unknowns": self.n_unknowns, "seconds": number_or_null(self.seconds)}
 
     @classmethod
     def from_json(cls, raw: Any) -> SolverReport:
         w = "diagnostics.solver"
-        doc = _object(raw, w)
-        return cls(_int(_required(doc, "iterations", w), f"{w}.iterations"),
-                   _str(_required(doc, "status", w), f"{w}.status"),
-                   _str(doc.get("message", ""), f"{w}.message"),
-                   _float(doc.get("cost"), f"{w}.cost"),
-                   _int(_required(doc, "n_unknowns", w), f"{w}.n_unknowns"),
-                   _float(doc.get("seconds"), f"{w}.seconds"))
+        doc = json_object(raw, w)
+        return cls(whole(required(doc, "iterations", w), f"{w}.iterations"),
+                   text(required(doc, "status", w), f"{w}.status"),
+                   text(doc.get("message", ""), f"{w}.message"),
+                   number(doc.get("cost"), f"{w}.cost"),
+                   whole(required(doc, "n_unknowns", w), f"{w}.n_unknowns"),
+                   number(doc.get("seconds"), f"{w}.seconds"))
 
 
 @dataclass(frozen=True)
@@ -142,10 +99,10 @@ class ExcludedPoints:
     @classmethod
     def from_json(cls, raw: Any) -> ExcludedPoints:
         w = "diagnostics.excluded_points"
-        doc = _object(raw, w)
-        return cls(_int(_required(doc, "outliers", w), f"{w}.outliers"),
-                   _int(_required(doc, "outside_model", w), f"{w}.outside_model"),
-                   _str(doc.get("outside_model_reason", ""), f"{w}.outside_model_reason"))
+        doc = json_object(raw, w)
+        return cls(whole(required(doc, "outliers", w), f"{w}.outliers"),
+                   whole(required(doc, "outside_model", w), f"{w}.outside_model"),
+                   text(doc.get("outside_model_reason", ""), f"{w}.outside_model_reason"))
 
 
 @dataclass(frozen=True)
@@ -158,17 +115,17 @@ class RestartFit:
     iterations: int
 
     def to_json(self) -> dict[str, Any]:
-        return {"rmse": _number_json(self.rmse), "fx": self.fx, "fy": self.fy, "iterations": self.iterations}
+        return {"rmse": number_or_null(self.rmse), "fx": self.fx, "fy": self.fy, "iterations": self.iterations}
 
     @classmethod
     def from_json(cls, raw: Any, where: str) -> RestartFit:
-        doc = _object(raw, where)
+        doc = json_object(raw, where)
 
-        def number(key: str) -> float:
-            return _float(_required(doc, key, where), f"{where}.{key}")
+        def figure(key: str) -> float:
+            return number(required(doc, key, where), f"{where}.{key}")
 
-        return cls(number("rmse"), number("fx"), number("fy"),
-                   _int(_required(doc, "iterations", where), f"{where}.iterations"))
+        return cls(figure("rmse"), figure("fx"), figure("fy"),
+                   whole(required(doc, "iterations", where), f"{where}.iterations"))
 
 
 @dataclass(frozen=True)
@@ -193,11 +150,11 @@ class Restart:
     @classmethod
     def from_json(cls, raw: Any) -> Restart:
         w = "diagnostics.restart"
-        doc = _object(raw, w)
-        return cls(_str(_required(doc, "reason", w), f"{w}.reason"),
-                   RestartFit.from_json(_required(doc, "first", w), f"{w}.first"),
-                   RestartFit.from_json(_required(doc, "restarted", w), f"{w}.restarted"),
-                   _str(_required(doc, "kept", w), f"{w}.kept"), _str(doc.get("warning", ""), f"{w}.warning"))
+        doc = json_object(raw, w)
+        return cls(text(required(doc, "reason", w), f"{w}.reason"),
+                   RestartFit.from_json(required(doc, "first", w), f"{w}.first"),
+                   RestartFit.from_json(required(doc, "restarted", w), f"{w}.restarted"),
+                   text(required(doc, "kept", w), f"{w}.kept"), text(doc.get("warning", ""), f"{w}.warning"))
 
 
 @dataclass(frozen=True)
@@ -225,20 +182,20 @@ class CandidateScore:
 
     @classmethod
     def from_json(cls, raw: Any, where: str) -> CandidateScore:
-        doc = _object(raw, where)
+        doc = json_object(raw, where)
         chosen, within = doc.get("chosen"), doc.get("within_noise")
         if not isinstance(chosen, bool) or not (within is None or isinstance(within, bool)):
             raise FormatError(f"{where}: expected chosen and within_noise as true/false")
         n_params = doc.get("n_params")
 
         def score(key: str) -> float | None:
-            return _optional_float(doc.get(key), f"{where}.{key}")
+            return optional_number(doc.get(key), f"{where}.{key}")
 
-        return cls(_str(_required(doc, "name", where), f"{where}.name"),
-                   _str(doc.get("label", ""), f"{where}.label"), chosen,
+        return cls(text(required(doc, "name", where), f"{where}.name"),
+                   text(doc.get("label", ""), f"{where}.label"), chosen,
                    score("validation_rmse"), score("validation_mse"), score("standard_error_rmse"), within,
-                   None if n_params is None else _int(n_params, f"{where}.n_params"),
-                   _str(doc.get("error", ""), f"{where}.error"))
+                   None if n_params is None else whole(n_params, f"{where}.n_params"),
+                   text(doc.get("error", ""), f"{where}.error"))
 
 
 @dataclass(frozen=True)
@@ -266,13 +223,13 @@ class ChoiceReport:
     @classmethod
     def from_json(cls, raw: Any) -> ChoiceReport:
         w = "diagnostics.model_choice"
-        doc = _object(raw, w)
-        rows = _required(doc, "candidates", w)
+        doc = json_object(raw, w)
+        rows = required(doc, "candidates", w)
         if not isinstance(rows, list) or sum(1 for c in rows if isinstance(c, dict) and c.get("chosen") is True) != 1:
             raise FormatError(f"{w}.candidates: expected a list with exactly one chosen candidate")
-        return cls(_str(_required(doc, "chosen", w), f"{w}.chosen"), _str(doc.get("summary", ""), f"{w}.summary"),
-                   _str(doc.get("rule", ""), f"{w}.rule"), _str(doc.get("how", ""), f"{w}.how"),
-                   _int(doc.get("n_views", 0), f"{w}.n_views"), _int(doc.get("n_points", 0), f"{w}.n_points"),
+        return cls(text(required(doc, "chosen", w), f"{w}.chosen"), text(doc.get("summary", ""), f"{w}.summary"),
+                   text(doc.get("rule", ""), f"{w}.rule"), text(doc.get("how", ""), f"{w}.how"),
+                   whole(doc.get("n_views", 0), f"{w}.n_views"), whole(doc.get("n_points", 0), f"{w}.n_points"),
                    tuple(CandidateScore.from_json(c, f"{w}.candidates[{k}]") for k, c in enumerate(rows)))
 
 
@@ -309,7 +266,7 @@ class Diagnostics:
 
     @classmethod
     def from_json(cls, raw: Any) -> Diagnostics:
-        doc = dict(_object(raw, "diagnostics"))
+        doc = dict(json_object(raw, "diagnostics"))
         restart, choice, solver = doc.pop("restart", None), doc.pop("model_choice", None), doc.pop("solver", None)
         hull, excluded = doc.pop("coverage_hull", None), doc.pop("excluded_points", None)
         camera, excluded_views = doc.pop("camera", None), doc.pop("excluded_views", None)
@@ -319,7 +276,7 @@ class Diagnostics:
                    solver=None if solver is None else SolverReport.from_json(solver),
                    coverage_hull=None if hull is None else _hull(hull),
                    excluded_points=None if excluded is None else ExcludedPoints.from_json(excluded),
-                   camera=None if camera is None else _object(camera, "diagnostics.camera"),
+                   camera=None if camera is None else json_object(camera, "diagnostics.camera"),
                    excluded_views=None if excluded_views is None else _names(excluded_views))
 
 
@@ -330,10 +287,10 @@ def _json_of(part: Restart | ChoiceReport | SolverReport | ExcludedPoints | None
 def _hull(raw: Any) -> list[list[float]]:
     if not isinstance(raw, list) or not all(isinstance(p, list) and len(p) == 2 for p in raw):
         raise FormatError("diagnostics.coverage_hull: expected a list of [x, y] pixels")
-    return [[_float(x, "diagnostics.coverage_hull"), _float(y, "diagnostics.coverage_hull")] for x, y in raw]
+    return [[number(x, "diagnostics.coverage_hull"), number(y, "diagnostics.coverage_hull")] for x, y in raw]
 
 
 def _names(raw: Any) -> list[str]:
     if not isinstance(raw, list):
         raise FormatError("diagnostics.excluded_views: expected a list of view names")
-    return [_str(n, "diagnostics.excluded_views") for n in raw]
+    return [text(n, "diagnostics.excluded_views") for n in raw]

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..calibration import Calibration, json_safe
 from ..errors import FormatError
+from ..json_fields import json_object, number, required, whole
 from ..models import camera
 from ..observations import read_json, write_json
 
@@ -56,13 +57,10 @@ class RigMetrics:
 
     @classmethod
     def from_json(cls, raw: Any) -> RigMetrics:
-        if not isinstance(raw, dict):
-            raise FormatError("metrics: expected an object with rmse, rmse_axis, n_points")
-        rmse, rmse_axis, n = raw.get("rmse"), raw.get("rmse_axis"), raw.get("n_points")
-        if not (isinstance(rmse, (int, float)) and isinstance(rmse_axis, (int, float)) and isinstance(n, int)
-                and not any(isinstance(x, bool) for x in (rmse, rmse_axis, n)) and n >= 0):
-            raise FormatError(f"metrics: expected numbers rmse, rmse_axis and a whole n_points, got {raw!r}")
-        return cls(float(rmse), float(rmse_axis), n)
+        doc = json_object(raw, "metrics")
+        return cls(number(required(doc, "rmse", "metrics"), "metrics.rmse"),
+                   number(required(doc, "rmse_axis", "metrics"), "metrics.rmse_axis"),
+                   whole(required(doc, "n_points", "metrics"), "metrics.n_points"))
 
 
 @dataclass

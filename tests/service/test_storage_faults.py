@@ -77,8 +77,12 @@ def fill(svc: TmpfsService) -> None:
 
 
 def make_read_only(svc: TmpfsService) -> None:
-    d = str(svc.data_dir)
-    svc.inside("sh", "-c", f"mount --bind {d} {d} && mount -o remount,bind,ro {d}")
+    # Made read-only beside the data directory, then moved over it: remounting in place races the
+    # server, whose files opened for writing in between make the kernel refuse (EBUSY).
+    d, staging = str(svc.data_dir), svc.log_dir / "read-only"
+    staging.mkdir(exist_ok=True)
+    svc.inside("sh", "-c", f"mount --bind {d} {staging} && mount -o remount,bind,ro {staging} "
+                           f"&& mount --move {staging} {d}")
 
 
 CONDITIONS = {  # name: (make it, undo it, status of a write, words of the write's answer, words in health)

@@ -17,6 +17,7 @@ from fastapi.responses import JSONResponse
 from calib_core.errors import CalibError
 
 from ..base.storage import storage_failure
+from .schemas import JOB_KINDS
 
 log = logging.getLogger("freecal.api")
 
@@ -44,7 +45,7 @@ def install(app: FastAPI) -> None:
     async def validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:
         parts = []
         for err in exc.errors():
-            where = ".".join(str(p) for p in err.get("loc", ()) if p not in ("body",))
+            where = ".".join(str(p) for p in err.get("loc", ()) if p not in ("body", *JOB_KINDS))  # a union's tags
             parts.append(f"{where}: {err.get('msg')}" if where else str(err.get("msg")))
         return JSONResponse({"detail": "invalid request: " + "; ".join(parts) + " (see /docs for the schema)"},
                             status_code=422)

@@ -6,8 +6,8 @@ from datetime import UTC, datetime
 from typing import Any
 
 from ..base.context import Context
-from ..base.repository.jobs import split_settings
-from .schemas import ImagePublic, JobPublic, SetPublic, Timings
+from ..base.repository.jobs import split_rig, split_settings
+from .schemas import ImagePublic, JobPublic, RigSpec, SetPublic, Timings
 from .services import sets as set_service
 
 
@@ -44,8 +44,10 @@ def job_public(row: dict[str, Any]) -> JobPublic:
     else:
         downloads = {name: f"/api/jobs/{row['id']}/{name}" for name in row["artefacts"]}
     settings, exclude = split_settings(row["settings"])
+    settings, rig = split_rig(settings)
     return JobPublic(
         id=row["id"], kind=row["kind"], set_id=row["set_id"], method=row["method"], settings=settings, exclude=exclude,
+        rig=None if rig is None else RigSpec(**rig),
         state=row["state"], stage=row["stage"], progress=row["progress"], error=row["error"],
         attempts=row["attempts"], cancel_requested=row["cancel_requested"], worker=row["worker"],
         created_at=datetime.fromtimestamp(row["created_at"], tz=UTC), started_at=_dt(start), finished_at=_dt(end), timings=timings,

@@ -2,9 +2,9 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Discriminator, Field, Tag, model_validator
 
 JobState = Literal["queued", "running", "done", "failed", "cancelled"]
 SetState = Literal["queued", "detecting", "ready", "failed", "cancelled"]
@@ -82,6 +82,8 @@ class JobCreate(BaseModel):
         {"required": ["observations"], "properties": {"observations": {"type": "object"}, "set_id": {"type": "null"}}},
     ]}}
 
+    kind: Literal["calibrate"] = Field("calibrate", description="a calibration of one camera (the default); "
+                                       "\"rig\" for several cameras: RigJobCreate")
     set_id: str | None = Field(None, description="an image set whose corners are ready")
     observations: dict[str, Any] | None = Field(None, description="or corners inline: freecal.observations/1")
     method: str = Field("auto", description="a method name ('auto', the default, chooses the model that best "
@@ -99,6 +101,47 @@ class JobCreate(BaseModel):
         return self
 
 
+CAMERA_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
+
+
+class RigJobCreate(BaseModel):
+    """Several cameras calibrated together (docs/rigs.md): one ready set per camera, views matched by frame."""
+    kind: Literal["rig"] = Field(description="a rig: several cameras fixed together, calibrated together")
+    set_ids: list[str] = Field(description="one ready set per camera (two or more, at most the server's "
+                               "FREECAL_MAX_RIG_CAMERAS), in the order of the cameras")
+    names: list[str] | None = Field(None, description="the cameras' names, one per set, distinct, letters, digits "
+                                    "and _ . - (default: the sets' names without their extension, else cam0, cam1, ...)")
+    reference: str | None = Field(None, description="the camera the others are placed from (default: the first)")
+    method: str = Field("auto", description="each camera's calibration method, as for a calibration ('auto': the "
+                        "model that best predicts views left out of its fit); not 'compare'")
+    settings: dict[str, Any] = Field(default_factory=dict, description="the method's settings, for every camera")
+    hold_models: bool = Field(False, description="keep each camera's model as calibrated alone (OpenCV's "
+                              "stereoCalibrate with CALIB_FIX_INTRINSIC); by default the rig's fit refines them")
+
+
+def _job_kind(body: Any) -> str | None:
+    """A job body's kind: "calibrate" when it names none (the API before rigs)."""
+    if isinstance(body, dict):
+        kind = body.get("kind", "calibrate")
+        return kind if isinstance(kind, str) else None
+    return getattr(body, "kind", None)
+
+
+# POST /api/jobs takes either body, told apart by "kind" (absent: a calibration)
+JOB_KINDS = ("calibrate", "rig")
+AnyJobCreate = Annotated[Annotated[JobCreate, Tag("calibrate")] | Annotated[RigJobCreate, Tag("rig")],
+                         Discriminator(_job_kind, custom_error_type="job_kind",
+                                       custom_error_message="kind: expected \"calibrate\" (the default) or \"rig\"")]
+
+
+class RigSpec(BaseModel):
+    """A rig job's cameras, as created (names and reference resolved)."""
+    set_ids: list[str] = Field(description="one set per camera, in the order of the cameras")
+    names: list[str] = Field(description="the cameras' names")
+    reference: str = Field(description="the camera the others are placed from")
+    hold_models: bool = Field(description="whether each camera's model was held as calibrated alone")
+
+
 class Timings(BaseModel):
     queued_seconds: float | None = Field(None, description="from creation to the (first) start")
     run_seconds: float | None = Field(None, description="from the start to the end (or now)")
@@ -107,11 +150,13 @@ class Timings(BaseModel):
 
 class JobPublic(BaseModel):
     id: str
-    kind: Literal["detect", "calibrate"]
+    kind: Literal["detect", "calibrate", "rig"]
     set_id: str | None
     method: str | None
     settings: dict[str, Any]
     exclude: list[str] = Field(default_factory=list, description="the views left out of this calibration")
+    rig: RigSpec | None = Field(None, description="a rig job's cameras (kind rig); its summary has each camera's "
+                                "rmse, the rig's and the frames used")
     state: JobState
     stage: str | None = Field(description="detect, initialise, knots, control points, joint optimisation, metrics ...")
     progress: float = Field(description="0-100 %")

@@ -42,7 +42,7 @@ CREATE TABLE IF NOT EXISTS images (
 );
 CREATE TABLE IF NOT EXISTS jobs (
     id TEXT PRIMARY KEY,
-    kind TEXT NOT NULL,              -- 'detect' (a set's corners) or 'calibrate'
+    kind TEXT NOT NULL,              -- 'detect' (a set's corners), 'calibrate' or 'rig' (several sets, set_id NULL)
     set_id TEXT,
     method TEXT,
     settings TEXT NOT NULL DEFAULT '{}',

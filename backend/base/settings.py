@@ -64,6 +64,9 @@ class Settings:
     allowed_hosts: str = ""
     # Jobs (detections and calibrations) one client IP may have queued or running at once (429 beyond).
     max_jobs_per_client: int = 20
+    # Cameras one rig job may calibrate together (POST /api/jobs with kind "rig"; 422 beyond):
+    # each is a calibration of its own, then one joint fit of every camera's corners.
+    max_rig_cameras: int = 8
     # A job running longer than this (seconds) is killed and failed with the reason (0 = no limit).
     # Jobs run in a child process of the worker, so the limit holds even for a solver stuck in C.
     job_timeout: float = 1800.0
@@ -101,6 +104,9 @@ class Settings:
         for name in ("max_upload_bytes", "max_files", "max_image_pixels", "max_jobs_per_client"):
             if getattr(settings, name) < 1:
                 raise SystemExit(f"FREECAL_{name.upper()}={getattr(settings, name)}: expected a positive number")
+        if settings.max_rig_cameras < 2:
+            raise SystemExit(f"FREECAL_MAX_RIG_CAMERAS={settings.max_rig_cameras}: expected 2 or more (a rig is "
+                             "two or more cameras)")
         if settings.queue not in ("sqlite", "redis"):
             raise SystemExit(f"FREECAL_QUEUE={settings.queue!r}: expected 'sqlite' or 'redis'")
         return replace(settings, data_dir=Path(settings.data_dir).resolve())

@@ -6,13 +6,17 @@ cost nothing. Names here are the download names of ``/api/jobs/{id}/{name}``.
 """
 from __future__ import annotations
 
+import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from calib_core import Calibration, Observations
 from calib_core.calibration import json_safe
+from calib_core.errors import CalibError
 from calib_core.evaluation.compare import Comparison
 from calib_core.report.tables import report_files, to_csv
+from calib_core.rig import Rig
 
 from ..base import storage
 
@@ -54,6 +58,49 @@ def validation_of(cal: Calibration) -> dict[str, Any]:
     if chosen and chosen.get("cv") is not None:
         return {"validation": {"mse": chosen["cv"], "how": "knot grid chosen on views left out (px²)"}}
     return {}
+
+
+# a rig's files: freecal.rig/1, then `freecal export RIG.json --to kalibr|opencv`'s output
+RIG_FILE = "rig.json"
+RIG_EXPORTS = {"camchain.yaml": "kalibr", "stereo.yaml": "opencv"}
+
+
+def rig_text(rig: Rig) -> str:
+    """freecal.rig/1 as `freecal rig -o` writes it (the CLI's ``json_text``): strict JSON, one space of indent."""
+    return json.dumps(json_safe(rig.to_json()), indent=1, allow_nan=False) + "\n"
+
+
+def write_rig(out: Path, rig: Rig, progress: Callable[[str, float], None]) -> tuple[list[str], dict[str, str]]:
+    """rig.json and its exports; returns the names written and, per export that could not be made, why.
+    Each export is made from rig.json read back, as `freecal export rig.json` makes it."""
+    from calib_core.exports.rig import export_rig
+
+    text = rig_text(rig)
+    _write(out, {RIG_FILE: text})
+    written, unavailable = [RIG_FILE], {}
+    saved = Rig.from_json(json.loads(text))
+    for k, (name, to) in enumerate(RIG_EXPORTS.items()):
+        progress(f"export: {to}", k / len(RIG_EXPORTS))
+        if to == "opencv" and len(saved.cameras) != 2:
+            unavailable[name] = (f"OpenCV's stereo file holds two cameras and this rig has {len(saved.cameras)}; "
+                                 "download camchain.yaml (Kalibr: every camera in one file)")
+            continue
+        try:
+            written += _write(out, {name: export_rig(saved, to).text})
+        except CalibError as exc:  # a model the tool cannot take: the rig itself is fine, say why this file is not
+            unavailable[name] = f"the {to} export failed: {exc}"
+    return sorted(written), unavailable
+
+
+def rig_summary(rig: Rig, unavailable: dict[str, str]) -> dict[str, Any]:
+    """What the jobs list shows of a rig: each camera's error in the rig (and alone), the rig's, the frames used."""
+    report = rig.diagnostics["cameras"]
+    cameras = [{"name": c.name, "model": c.calibration.settings.get("chosen", c.calibration.method),
+                "rmse": report[c.name]["rmse_in_rig"], "rmse_alone": report[c.name]["rmse_alone"],
+                "n_frames": report[c.name]["n_frames"]} for c in rig.cameras]
+    return json_safe({"reference": rig.reference, "cameras": cameras, "metrics": rig.metrics.to_json(),
+                      "n_frames": len(rig.frames), "models_refined": rig.diagnostics["solver"]["models_refined"],
+                      "warnings": rig.diagnostics.get("warnings", []), "exports_unavailable": unavailable})
 
 
 def compare_summary(result: Comparison) -> dict[str, Any]:

@@ -15,11 +15,11 @@ from calib_core.fitting.solve import Cancelled
 
 from ..base.context import Context
 from ..base.repository import jobs
-from . import calibrate_job, detect_job, job_process
+from . import calibrate_job, detect_job, job_process, rig_job
 from .lease import WORKER_ID, JobRun
 
 log = logging.getLogger("freecal.worker")
-RUNNERS = {"detect": detect_job.run, "calibrate": calibrate_job.run}
+RUNNERS = {"detect": detect_job.run, "calibrate": calibrate_job.run, "rig": rig_job.run}
 
 
 def execute(ctx: Context, job_id: str) -> list[str]:

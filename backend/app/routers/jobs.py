@@ -1,4 +1,7 @@
-"""/api/jobs: create a calibration job, read its progress, cancel, delete, download results."""
+"""/api/jobs: create a calibration or rig job, read its progress, cancel, delete, download results.
+
+A rig (several cameras, one set each) is a job like a calibration: created by the same POST with
+``"kind": "rig"``, then read, listed, cancelled, deleted and downloaded at the same paths."""
 from __future__ import annotations
 
 from typing import Any, Literal
@@ -11,9 +14,10 @@ from ..bounded_json import BoundedJSONRoute
 from ..deps import ContextDep, QueueDep
 from ..errors import ApiError
 from ..presenters import job_public
-from ..schemas import JobCreate, JobPublic, JobsPublic, Message
+from ..schemas import AnyJobCreate, JobCreate, JobPublic, JobsPublic, Message
 from ..security import QuotaDep, client_of
 from ..services import jobs as service
+from ..services import rigs
 
 # BoundedJSONRoute: the JSON body (inline observations: up to 64 MiB) is parsed off the event loop, depth bounded
 router = APIRouter(prefix="/api/jobs", tags=["jobs"], route_class=BoundedJSONRoute)
@@ -25,17 +29,18 @@ MEDIA = {".json": "application/json", ".csv": "text/csv; charset=utf-8", ".yaml"
 
 
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=JobPublic, responses=ERRORS)
-def create_job(ctx: ContextDep, queue: QueueDep, quota: QuotaDep, request: Request, body: JobCreate) -> JobPublic:
-    """Queue a calibration of a ready set (or of corners given inline) with one method or 'compare'."""
+def create_job(ctx: ContextDep, queue: QueueDep, quota: QuotaDep, request: Request, body: AnyJobCreate) -> JobPublic:
+    """Queue a calibration of a ready set (or of corners given inline) with one method or 'compare'; or, with
+    "kind": "rig", several cameras calibrated together from one ready set each (set_ids)."""
     quota.check(ctx, client_of(request))  # 429 past FREECAL_MAX_JOBS_PER_CLIENT
-    job_id = service.create(ctx, queue, body)
+    job_id = service.create(ctx, queue, body) if isinstance(body, JobCreate) else rigs.create(ctx, queue, body)
     quota.add(client_of(request), job_id)
     return job_public(service.get(ctx, job_id))
 
 
 @router.get("", response_model=JobsPublic)
 def list_jobs(ctx: ContextDep, set_id: str | None = None,
-              kind: Literal["calibrate", "detect", "all"] = "calibrate") -> JobsPublic:
+              kind: Literal["calibrate", "detect", "rig", "all"] = "calibrate") -> JobsPublic:
     rows = job_rows.list_all(ctx.db, kind=None if kind == "all" else kind, set_id=set_id)
     return JobsPublic(jobs=[job_public(r) for r in rows], count=len(rows))
 
@@ -61,11 +66,15 @@ def delete_job(ctx: ContextDep, job_id: str) -> Response:
 @router.get("/{job_id}/{name}", response_class=FileResponse, responses=ERRORS)
 def download(ctx: ContextDep, job_id: str, name: str) -> FileResponse:
     """A result file: calibration.json, comparison.json/.csv, view_residuals.json/.csv,
-    corner_residuals.json/.csv, heatmap.json, knots.json, distortion_field.json, opencv.yaml."""
+    corner_residuals.json/.csv, heatmap.json, knots.json, distortion_field.json, opencv.yaml; of a rig:
+    rig.json (freecal.rig/1), camchain.yaml (Kalibr), stereo.yaml (OpenCV, a pair)."""
     job = service.get(ctx, job_id)
     if job["state"] != "done":
         raise ApiError(409, f"job {job_id} is {job['state']}: results exist once it is done"
                        + (f" (it failed: {job['error']})" if job["state"] == "failed" else ""))
+    why = (job["summary"].get("exports_unavailable") or {}).get(name)
+    if name not in job["artefacts"] and why:
+        raise ApiError(404, f"job {job_id} has no {name!r}: {why}")
     if name not in job["artefacts"]:
         raise ApiError(404, f"job {job_id} has no {name!r}; it has: {', '.join(job['artefacts'])}")
     suffix = name[name.rfind("."):]

@@ -16,12 +16,19 @@ ACTIVE = ("queued", "running")
 
 WAITING_FOR_DETECTION = "waiting for detection"  # the stage of a calibration queued on a set still detecting
 EXCLUDE_KEY = "exclude_views"  # in a calibration's stored settings: the views left out of it (JobCreate.exclude)
+RIG_KEY = "rig"  # in a rig job's stored settings: its cameras (set_ids, names, reference, hold_models)
 
 
 def split_settings(settings: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
     """A calibration's stored settings → (the method's settings, the names of the views left out)."""
     rest = dict(settings)
     return rest, list(rest.pop(EXCLUDE_KEY, []))
+
+
+def split_rig(settings: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any] | None]:
+    """A job's stored settings → (the method's settings, the rig's cameras or None for other kinds)."""
+    rest = dict(settings)
+    return rest, rest.pop(RIG_KEY, None)
 
 
 def create(db: Database, job_id: str, kind: str, set_id: str | None, method: str | None,

@@ -2,9 +2,9 @@
 
 A thin wrapper, as ``calibrate_job`` is: ``calib_core.rig.calibrate_rig`` with the
 job's progress (which raises ``Cancelled`` when asked to stop), then
-``artefacts.write_rig``. The settings are those of ``freecal rig`` (its default
-``--outlier-sigma`` 5 included), so the job's rig.json is what the command writes
-for the same corners.
+``artefacts.write_rig``. The settings are those of ``freecal rig`` (the
+pipeline's defaults, ``outlier_sigma`` among them), so the job's rig.json is what
+the command writes for the same corners.
 """
 from __future__ import annotations
 
@@ -19,8 +19,6 @@ from ..base.repository.jobs import split_rig
 from . import artefacts
 from .lease import JobRun
 
-OUTLIER_SIGMA = 5.0  # freecal rig --outlier-sigma's default
-
 
 def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     run.progress("load", 0.0)
@@ -34,8 +32,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
         if not path.exists():
             raise DataError(f"camera {name!r}: its corners are missing from the job's folder; create the job again")
         cameras[name] = Observations.load(path)
-    outlier_sigma = settings.pop("outlier_sigma", OUTLIER_SIGMA)
     rig = calibrate_rig(cameras, job["method"], spec["reference"], lambda s, f: run.progress(s, f, 0.0, 0.85),
-                        refine_models=not spec["hold_models"], outlier_sigma=outlier_sigma, **settings)
+                        refine_models=not spec["hold_models"], **settings)
     names, unavailable = artefacts.write_rig(out, rig, lambda s, f: run.progress(s, f, 0.85, 1.0))
     return {"artefacts": names, "summary": artefacts.rig_summary(rig, unavailable)}

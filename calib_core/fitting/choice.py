@@ -1,7 +1,8 @@
 """Choosing among models by how well they predict views they have not seen.
 
 One rule for every choice between models (``method="auto"``'s candidates,
-a field's knot grids, ``compare``'s verdict): each candidate's validation
+``compare``'s verdict; a field's knot grids, whose smoothing already prices
+their flexibility, take the lowest error instead): each candidate's validation
 error per view, summed over the folds that left that view out; the lowest
 mean error per corner; and the simplest candidate (candidates come simplest
 first) within the noise of it: its excess over the lowest, view by view, no

@@ -36,7 +36,6 @@ from .. import ranges
 from ..errors import DataError, SettingsError
 from ..fit_report import Restart, RestartFit
 from ..fitting import knots, metrics
-from ..fitting.choice import Candidate, choose
 from ..fitting.crossval import linearised_view_errors
 from ..fitting.gram import gram
 from ..fitting.init import initialise
@@ -350,13 +349,12 @@ def _choose_smoothing(problem: FieldProblem, samples, response, weights, views, 
     and field (``crossval.linearised_view_errors``), where the camera and
     the other views take up what a coarse field leaves (at a held camera a
     6 × 6 grid predicted left-out views 2× worse than 15 × 15 and the
-    hold-out 1.7× better, decentred lens). Of the grids, the coarsest within
-    the noise of the lowest (``choice.choose``: extra knots cost most where
-    no corner is, at the image's edges and corners).
+    hold-out 1.7× better, decentred lens). Of the grids, the one that
+    predicts best (``_best_grid``).
     Candidates run cheapest (fewest intervals) and most likely (the paper's
     bandwidth) first; the first always runs. Finer grids stop once
-    STALE_GRIDS in a row have not predicted clearly better than the best so
-    far (the rule would not take them), and those the time budget leaves out
+    STALE_GRIDS in a row have not predicted better than the best so far,
+    and those the time budget leaves out
     stop too; both enter the curve as skipped."""
     fixed_intervals, fixed_factor, fixed_lambda = s.fixed_intervals(), s.fixed_bandwidth_factor(), s.fixed_lambda_smooth()
     counts = [(m, m) for m in AUTO_INTERVALS if m <= s.max_intervals] if fixed_intervals is None else [fixed_intervals]
@@ -398,18 +396,23 @@ def _choose_smoothing(problem: FieldProblem, samples, response, weights, views, 
                           "cv": float(cv.score[cv.best]), "validation": float(sse.sum() / units.sum()),
                           "dof": float(cv.dof[cv.best])})
             options.append((sum(intervals), m, factor, lam, sse, units, breaks))
-            # a finer grid earns its keep when the rule would take it over every coarser one
-            so_far = choose([Candidate("", "", o[4]) for o in options], units)
-            stale = 0 if so_far.chosen == len(options) - 1 else stale + 1
+            # a finer grid earns its keep when it predicts better than every coarser one
+            stale = 0 if _best_grid(options) == len(options) - 1 else stale + 1
     if not options:  # no grid the corners can carry: the coarsest, for the fit's own error to say so
         m = counts[0]
         breaks = knots.breaks_for(samples, weights, problem.domain, s.knot_settings(m, factors[0]), problem.footprint)
         return m, factors[0], 1.0, breaks, curve
-    options.sort(key=lambda o: o[0])
-    chosen = choose([Candidate(str(o[1]), "", o[4]) for o in options], options[0][5]).chosen
-    _, m, factor, lam, _, _, breaks = options[chosen]
+    _, m, factor, lam, _, _, breaks = options[_best_grid(options)]
     return m, factor, lam, breaks, curve
 
+
+def _best_grid(options) -> int:
+    """The grid whose fits predict the views left out of them best. Not the
+    one-standard-error rule's coarsest within the noise: each grid's λ,
+    chosen by the same prediction, already prices its flexibility (a fine
+    grid smoothed hard is a smooth field), and preferring coarse grids on top
+    of it kept fields too stiff for a freeform lens's image corners."""
+    return int(np.argmin([o[4].sum() for o in options]))
 
 def wrong_camera(res, reference, data: Data) -> str:
     """Why the field's fit is not to be trusted, or "": it ends far from a

@@ -20,6 +20,7 @@ run: $(STAMP)
 
 test: $(STAMP) lint
 	@bash scripts/ensure-system-packages.sh
+	@bash scripts/ensure-mrcal.sh >/dev/null
 	$(PY) -m pytest
 
 # The quick loop while editing: the science's tests under 5 s each (no server, no browser), on both cores.

@@ -6,8 +6,8 @@ set, and the validation of the B-spline projection uncertainty.
         [--sections compare,noise,uncertainty,mrcal] [--sigmas 0.1,0.3,0.5,1.0,2.0]
         [--splits 5] [--realisations 50] [--real babelcalib-ov-plane-fisheye] [--json OUT]
 
-The mrcal side by side (``mrcal_bridge.py``) runs when ``FREECAL_MRCAL_PYTHON``
-names mrcal's interpreter (a Python 3.12 venv: docs/methods.md, "Side by side with mrcal");
+The mrcal side by side (``mrcal_bridge.py``) runs when mrcal's interpreter is there
+(``scripts/ensure-mrcal.sh`` or ``FREECAL_MRCAL_PYTHON``: docs/methods.md, "Side by side with mrcal");
 otherwise that section is skipped with a note.  ``--sections mrcal`` runs it
 alone in a few minutes.
 """
@@ -275,7 +275,7 @@ def main(argv: list[str]) -> int:
         if python:
             out["mrcal"] = mrcal_side_by_side(kinds, a.holdout_every, a.real, python)
         else:
-            print("mrcal: skipped (set FREECAL_MRCAL_PYTHON to the python of a venv with mrcal; docs/methods.md)")
+            print("mrcal: skipped (run scripts/ensure-mrcal.sh, or set FREECAL_MRCAL_PYTHON to the python of a venv with mrcal; docs/methods.md)")
     if a.json:
         with open(a.json, "w") as f:
             json.dump(out, f, indent=1, default=float)

@@ -14,7 +14,7 @@ paper's fixed grid and mrcal's splined model, and how its time scales.
 - babelcalib: train/ → test/ of BabelCalib's OV fisheye (target ≤ 0.415 px).
 - speed: CPU seconds of one calibration after a warm-up, the default and the paper's
   fixed 10 × 10 grid against mrcal's splined model, both its routes
-  (``mrcal_bridge``; skipped unless ``FREECAL_MRCAL_PYTHON`` is set). Targets: the
+  (``mrcal_bridge``; skipped without mrcal's venv: ``scripts/ensure-mrcal.sh``). Targets: the
   default no slower than mrcal's quicker route; the fixed grid ≥ 3× faster than it.
 - scaling: the fixed grid and the default from 10 to 160 views of the asymmetric
   lens. Targets: 100 views under 5 s for the default; the fixed grid's time linear
@@ -235,7 +235,7 @@ def speed(a) -> None:
                     f"quicker mrcal / fixed (≥ {TARGET_SPEEDUP:g})", "verdict"]
     markdown(headers, rows)
     if not python:
-        print("mrcal: skipped (set FREECAL_MRCAL_PYTHON to the python of a venv with mrcal; docs/methods.md, "
+        print("mrcal: skipped (run scripts/ensure-mrcal.sh, or set FREECAL_MRCAL_PYTHON to the python of a venv with mrcal; docs/methods.md, "
               "\"Side by side with mrcal\")\n")
     else:
         print("mrcal splined: SPLINED_STEREOGRAPHIC from OPENCV8's poses (its time includes OPENCV8's); "

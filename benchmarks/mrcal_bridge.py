@@ -22,10 +22,15 @@ SCRIPT = Path(__file__).with_name("mrcal_fit.py")
 MODELS = ("opencv8", "splined", "splined_direct")  # see mrcal_fit.fit_all
 
 
+LOCAL_VENV = Path(__file__).resolve().parent.parent / ".mrcal-venv" / "bin" / "python"  # scripts/ensure-mrcal.sh
+
+
 def interpreter() -> str | None:
-    """mrcal's Python, or None when it is not configured (the benchmark then skips mrcal)."""
-    path = os.environ.get("FREECAL_MRCAL_PYTHON")
-    return path if path and os.path.exists(path) else None
+    """mrcal's Python: ``FREECAL_MRCAL_PYTHON``, else the venv ``make test`` makes
+    (scripts/ensure-mrcal.sh); None when neither exists (the benchmark and the
+    tests then skip mrcal)."""
+    path = os.environ.get("FREECAL_MRCAL_PYTHON") or str(LOCAL_VENV)
+    return path if os.path.exists(path) else None
 
 
 def lattice(obs: Observations) -> tuple[float, np.ndarray, tuple[int, int]]:

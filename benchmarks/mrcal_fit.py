@@ -1,6 +1,6 @@
 """Calibrate with mrcal, for the side-by-side benchmark (``mrcal_bridge.py``).
 
-Runs under mrcal's own interpreter (``FREECAL_MRCAL_PYTHON``, Python ≥ 3.12:
+Runs under mrcal's own interpreter (``mrcal_bridge.interpreter()``, Python ≥ 3.12:
 mrcal has no wheel for the project's 3.11), so it imports nothing from
 freecal.  Usage: ``python mrcal_fit.py IN.npz OUT.npz``.
 

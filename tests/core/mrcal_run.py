@@ -1,14 +1,15 @@
-"""mrcal itself, in its own venv (``FREECAL_MRCAL_PYTHON``, as benchmarks/mrcal_bridge.py):
+"""mrcal itself, in its own venv (``benchmarks.mrcal_bridge.interpreter``):
 load a written ``.cameramodel`` with ``mrcal.cameramodel`` and project with
-``mrcal.project``, or run one of mrcal's tools. Tests skip when it is not set."""
+``mrcal.project``, or run one of mrcal's tools. Tests skip when there is none."""
 from __future__ import annotations
 
-import os
 import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from benchmarks import mrcal_bridge
 
 PROJECT = """
 import sys, numpy as np, mrcal
@@ -22,9 +23,10 @@ np.savez(sys.argv[3], q=mrcal.project(rays, lensmodel, intrinsics), intrinsics=i
 
 
 def python() -> str:
-    path = os.environ.get("FREECAL_MRCAL_PYTHON")
-    if not path or not os.path.exists(path):
-        pytest.skip("mrcal is not configured: set FREECAL_MRCAL_PYTHON to the python of mrcal's venv")
+    path = mrcal_bridge.interpreter()
+    if path is None:
+        pytest.skip("mrcal is not configured: run scripts/ensure-mrcal.sh (make test does), or set "
+                    "FREECAL_MRCAL_PYTHON to the python of mrcal's venv")
     return path
 
 

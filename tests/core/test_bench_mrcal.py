@@ -30,7 +30,7 @@ def test_babelcalib_board_spacing_is_found_from_its_corners():
     assert spacing == pytest.approx(7.5) and w <= 22 and h <= 22
 
 
-@pytest.mark.skipif(mrcal_bridge.interpreter() is None, reason="FREECAL_MRCAL_PYTHON (mrcal's venv) not set")
+@pytest.mark.skipif(mrcal_bridge.interpreter() is None, reason="mrcal is not configured (scripts/ensure-mrcal.sh)")
 def test_mrcal_opencv8_fits_the_radial_lens_to_the_noise():
     s = synth.generate("radial", n_views=6)
     out = mrcal_bridge.run(s.train, thin(s.holdout, 16), mrcal_bridge.interpreter())

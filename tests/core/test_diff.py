@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import subprocess
 
 import cv2
@@ -14,6 +13,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from backend.cli import main
+from benchmarks import mrcal_bridge
 from calib_core import Calibration, calibrate
 from calib_core.evaluation.diff import projection_diff
 from calib_core.exports import cameramodel, fit_lean
@@ -91,7 +91,7 @@ def test_two_cameras_are_refused():
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not os.environ.get("FREECAL_MRCAL_PYTHON"), reason="FREECAL_MRCAL_PYTHON is not set (mrcal's venv)")
+@pytest.mark.skipif(mrcal_bridge.interpreter() is None, reason="mrcal is not configured (scripts/ensure-mrcal.sh)")
 def test_it_agrees_with_mrcal_projection_diff(tmp_path):
     """Two calibrations of OpenCV's own lens from different noise draws, written as
     LENSMODEL_OPENCV5 (exact), compared by mrcal.projection_diff with mrcal's
@@ -108,7 +108,7 @@ def test_it_agrees_with_mrcal_projection_diff(tmp_path):
               "m = [mrcal.cameramodel(p) for p in sys.argv[1:3]]\n"
               "difflen, diff, q0, Rt = mrcal.projection_diff(m, use_uncertainties=False, gridn_width=60)\n"
               "print(json.dumps({'difflen': np.nan_to_num(difflen, nan=-1).tolist(), 'q0': q0.tolist()}))\n")
-    run = subprocess.run([os.environ["FREECAL_MRCAL_PYTHON"], "-c", script, *map(str, paths)], capture_output=True,
+    run = subprocess.run([mrcal_bridge.interpreter(), "-c", script, *map(str, paths)], capture_output=True,
                          text=True, timeout=120)
     assert run.returncode == 0, run.stderr
     theirs = json.loads(run.stdout)

@@ -18,7 +18,7 @@ from ..methods.common import Progress, named, no_progress, scaled
 from ..observations import Observations
 from ..pipeline import calibrate
 from .bundle import Corners, adjust
-from .frames import frames_of
+from .frames import frames_of, unlinked
 from .poses import compose, inverse
 from .rig import Rig, RigCamera, RigFrame, RigMetrics
 
@@ -59,8 +59,10 @@ def calibrate_rig(cameras: dict[str, Observations], method: str = "auto", refere
     reference = names[0] if reference is None else reference
     if reference not in cameras:
         raise DataError(f"reference camera {reference!r} is not one of the cameras {names}")
-    for name, obs in cameras.items():
-        frames_of(name, obs.views)  # duplicate frames fail before any calibration
+    # duplicate and unshared frames fail before any calibration
+    lonely = unlinked({name: frames_of(name, obs.views) for name, obs in cameras.items()}, reference)
+    if lonely:
+        raise DataError(_unlinked_words(lonely, reference))
     parts = []
     for k, name in enumerate(names):
         part = named(scaled(progress, 0.8 * k / len(names), 0.8 * (k + 1) / len(names)), f"camera {name}")
@@ -100,6 +102,12 @@ def frame_key(frame: str):
     return (0, int(frame), frame) if frame.isdigit() else (1, 0, frame)
 
 
+def _unlinked_words(lonely: list[str], reference: str) -> str:
+    return (f"camera(s) {lonely} share no frame with camera {reference!r} or any camera linked to it: photograph "
+            "the board with them at the same moments, and number the images alike (left07.jpg, right07.jpg) or set "
+            "each view's \"frame\"")
+
+
 # ---- the starting point -----------------------------------------------------------
 def _initial_extrinsics(parts: list[CameraViews]) -> np.ndarray:
     """(C, 6) each camera's pose relative to the first (the reference), from
@@ -124,10 +132,8 @@ def _initial_extrinsics(parts: list[CameraViews]) -> np.ndarray:
                 progress_made = True
                 break
         if not progress_made:
-            lonely = [parts[c].name for c in range(len(parts)) if c not in placed]
-            raise DataError(f"camera(s) {lonely} share no frame with camera {parts[0].name!r} or any camera linked "
-                            "to it: photograph the board with them at the same moments, and number the images alike "
-                            "(left07.jpg, right07.jpg) or set each view's \"frame\"")
+            # possible still: views a camera's own calibration could not use
+            raise DataError(_unlinked_words([parts[c].name for c in range(len(parts)) if c not in placed], parts[0].name))
     return np.array([placed[c] for c in range(len(parts))])
 
 

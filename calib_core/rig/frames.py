@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Collection, Mapping
 
 from ..errors import DataError
 from ..observations import View
@@ -31,3 +32,16 @@ def frames_of(camera: str, views: list[View]) -> list[str]:
                             "a camera sees each frame once (set \"frame\" in the observations to tell them apart)")
         seen[f] = v.name
     return frames
+
+
+def unlinked(frames: Mapping[str, Collection[str]], reference: str) -> list[str]:
+    """The cameras (of camera → its frames) that no chain of shared frames
+    links to ``reference``: a rig cannot place them."""
+    linked, todo = {reference}, [reference]
+    while todo:
+        here = set(frames[todo.pop()])
+        for name, seen in frames.items():
+            if name not in linked and here.intersection(seen):
+                linked.add(name)
+                todo.append(name)
+    return [name for name in frames if name not in linked]

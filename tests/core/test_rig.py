@@ -155,8 +155,10 @@ def test_frames_come_from_the_view_field_before_the_name():
 
 def test_bad_rigs_are_refused_saying_why():
     cameras = simulated_rig([range(0, 6), range(6, 12)])
+    steps = []
     with pytest.raises(DataError, match=r"\['cam1'\] share no frame"):
-        calibrate_rig(cameras, "zhang")
+        calibrate_rig(cameras, "zhang", progress=lambda stage, fraction: steps.append(stage))
+    assert steps == [], "unshared frames are refused before any camera is calibrated"
     twice = simulated_rig([range(0, 6), range(0, 6)])
     twice["cam1"].views[1].frame = "000"
     with pytest.raises(DataError, match="are both frame '000'"):

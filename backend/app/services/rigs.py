@@ -15,7 +15,7 @@ from typing import Any
 
 from calib_core import Observations
 from calib_core.errors import DataError
-from calib_core.rig.frames import frames_of
+from calib_core.rig.frames import frames_of, unlinked
 
 from ...base import storage
 from ...base.context import Context
@@ -117,21 +117,14 @@ def _names(body: RigJobCreate, rows: list[dict[str, Any]]) -> list[str]:
 
 def _check_frames(cameras: dict[str, Observations], rows: list[dict[str, Any]], reference: str) -> None:
     """Each camera sees each frame once, and every camera is linked to the reference by shared frames
-    (directly, or through other cameras: the rule of ``calib_core.rig.calibrate_rig``)."""
+    (directly, or through other cameras)."""
     frames: dict[str, set[str]] = {}
     for (name, obs), row in zip(cameras.items(), rows, strict=True):
         try:
             frames[name] = set(frames_of(name, obs.views))
         except DataError as exc:
             raise ApiError(422, f"set {row['name']!r} ({row['id']}): {exc}") from None
-    linked, todo = {reference}, [reference]
-    while todo:
-        here = frames[todo.pop()]
-        for name, seen in frames.items():
-            if name not in linked and seen & here:
-                linked.add(name)
-                todo.append(name)
-    lonely = [name for name in cameras if name not in linked]
+    lonely = unlinked(frames, reference)
     if lonely:
         which = ", ".join(f"{name!r} (set {row['name']!r})" for (name, row) in zip(cameras, rows, strict=True)
                           if name in lonely)

@@ -72,6 +72,7 @@ export const api = {
   createSet: (form) => request("POST", "/api/sets", form),
   detectAgain: (id, board) => request("POST", `/api/sets/${id}/detect`, { board }),
   jobs: () => request("GET", "/api/jobs"),
+  rigJobs: () => request("GET", "/api/jobs?kind=rig"),
   job: (id) => request("GET", `/api/jobs/${id}`),
   createJob: (body) => request("POST", "/api/jobs", body),
   cancelJob: (id) => request("POST", `/api/jobs/${id}/cancel`),

@@ -1,4 +1,4 @@
-// The page's wiring: upload → set detection → job → results, with a poll loop that
+// The page's wiring: upload → set detection → job → results (and rigs of several sets), with a poll loop that
 // keeps the lists, the progress bars and the selected items current.
 import { api } from "./api.js";
 import { initBoard } from "./board.js";
@@ -6,6 +6,7 @@ import { clearError, showError } from "./errors.js";
 import { initHelp } from "./help.js";
 import { renderJob, renderJobs } from "./jobs.js";
 import { hideResults, renderResults } from "./results.js";
+import { initRig, renderRig } from "./rig.js";
 import { renderSet, renderSets } from "./sets.js";
 import { renderSetNotes } from "./setnotes.js";
 import { initMethods } from "./settings.js";
@@ -48,9 +49,10 @@ async function refresh() {
   if (busy) return;
   busy = true;
   try {
-    const [sets, jobs] = await Promise.all([api.sets(), api.jobs()]);
+    const [sets, jobs, rigs] = await Promise.all([api.sets(), api.jobs(), api.rigJobs()]);
     state.sets = sets.sets;
     renderSets(sets.sets, state.setId, selectSet);
+    renderRig(sets.sets, rigs.jobs);
     renderJobs(jobs.jobs, state.jobId, selectJob, sets.sets);
     let set = null;
     if (state.setId) {
@@ -88,7 +90,9 @@ async function init() {
   initHelp();
   initUpload(submit);
   try {
-    initMethods(await api.methods());
+    const methods = await api.methods();
+    initMethods(methods);
+    initRig(methods, refresh);
   } catch (e) { showError(e); }
   await refresh();
   setInterval(refresh, POLL_MS);

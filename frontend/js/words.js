@@ -7,7 +7,12 @@ export const NO_FILES = "Choose the photos first: drop images, a .zip or an obse
 const FIELDS = {
   files: "the photos", board: "the board", name: "the set name", method: "the method", settings: "the settings",
   set_id: "the image set", observations: "the corners file",
+  set_ids: "the cameras' sets", names: "the camera names", reference: "the reference camera",
 };
+
+// a rig's refusals name the request field first ("names: 'a' is given to more than one camera; …")
+const LEADING_FIELD = /^(set_ids|names|reference): (.*)$/s;
+const SET_ID = / \([0-9a-f]{8,}\)/g;   // "set 'left.json' (9f2c…) is detecting": the page names sets, never by id
 
 const capitalise = (s) => s.charAt(0).toUpperCase() + s.slice(1);
 
@@ -23,5 +28,7 @@ function sayPart(part) {
 /** ``message`` in page words: schema-speak rewritten, anything else as the API said it. */
 export function pageWords(message) {
   const m = /^invalid request: (.*?)(?: \(see \/docs for the schema\))?$/s.exec(message || "");
-  return m ? m[1].split("; ").map(sayPart).join(" ") : message;
+  if (m) return m[1].split("; ").map(sayPart).join(" ");
+  const f = LEADING_FIELD.exec(message || "");
+  return f ? `${capitalise(FIELDS[f[1]])}: ${f[2].replace(SET_ID, "")}` : message;
 }

@@ -1,0 +1,136 @@
+"""The rig panel in real Chromium against `freecal serve`: a stereo pair's corners uploaded as two
+sets from the page (synthetic cameras of tests/core/test_rig.py, frames 000-007 in both), ticked in
+the panel, named, calibrated together; the summary table is the job's summary, the downloads are
+the job's files, a reload lists the rig again; a refused rig says why in page words and makes no job.
+Screenshots go to test-artifacts/rig-page/.
+"""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from ..core.test_rig import simulated_rig
+from .conftest import page_service, screenshots, wait_until
+
+service = page_service("rig-page", FREECAL_VIEWER="0")
+shots = screenshots("rig-page")
+
+
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory):
+    """Two cameras' corners (frames 000-007, matched by the digits of the view names), as left.json and right.json."""
+    root = tmp_path_factory.mktemp("pair")
+    paths = []
+    for name, obs in zip(("left", "right"), simulated_rig([range(0, 8), range(0, 8)], seed=3).values(), strict=True):
+        obs.save(root / f"{name}.json")
+        paths.append(root / f"{name}.json")
+    return paths
+
+
+def open_page(browser, service):
+    page = browser.new_page(viewport={"width": 1366, "height": 768})
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(f"http://127.0.0.1:{service.port}/")
+    page.wait_for_selector("#rig-method option[value=zhang]", state="attached")
+    return page, errors
+
+
+def rig_jobs(service) -> list[dict]:
+    return service.client.get("/api/jobs", params={"kind": "rig"}).json()["jobs"]
+
+
+@pytest.mark.slow  # two uploads, their calibrations and the rig with its exports: about 20 s
+def test_a_stereo_pair_is_calibrated_from_the_rig_panel(browser, service, shots, pair):
+    page, errors = open_page(browser, service)
+    # each camera's corners uploaded as the page allows (with a quick calibration of its own)
+    for path in pair:
+        page.set_input_files("#files", str(path))
+        page.select_option("#method", "zhang")
+        page.click("#submit")
+        page.wait_for_selector(f"#sets button[aria-label='set {path.name}']")
+    wait_until(page, "document.querySelectorAll('#rig-cameras tbody tr[data-set]').length === 2", timeout=30_000)
+    # the cameras in upload order, named after their sets; none ticked until the user says so
+    assert page.eval_on_selector_all("#rig-cameras tbody tr[data-set] input[type=text]",
+                                     "xs => xs.map(x => x.value)") == ["left", "right"]
+    assert page.locator("#rig-cameras input[type=checkbox]:checked").count() == 0
+    assert page.text_content("#rig-jobs").strip() == "no rig jobs yet"
+    page.get_by_label("left.json", exact=True).check()
+    page.get_by_label("right.json", exact=True).check()
+    page.fill("#rig-cameras tbody tr:nth-child(2) input[type=text]", "right-cam")   # renamed by the user
+    assert page.eval_on_selector_all("#rig-reference option", "os => os.map(o => o.textContent)") == ["left", "right-cam"]
+    page.select_option("#rig-method", "zhang")
+    page.locator("#rig").screenshot(path=shots / "01-rig-form.png")
+    page.click("#rig-submit")
+
+    page.wait_for_selector("#rig-detail:not([hidden])", timeout=10_000)
+    assert page.get_attribute("#rig-progress-label", "aria-live") == "polite"
+    page.wait_for_selector("#rig-summary", timeout=120_000)
+    assert page.is_hidden("#rig-message") and page.is_hidden("#rig-cancel")
+    assert page.text_content("#rig-progress-label").startswith("done")
+    [job] = rig_jobs(service)
+    assert job["rig"]["names"] == ["left", "right-cam"] and job["rig"]["reference"] == "left"
+    assert job["method"] == "zhang" and job["rig"]["hold_models"] is False
+    summary = job["summary"]
+
+    # the table is the job's summary: a row per camera, then the rig's
+    rows = page.eval_on_selector_all("#rig-summary tbody tr", """rs => rs.map(r => ({
+        camera: r.dataset.camera, cells: [...r.querySelectorAll('td')].map(c => c.textContent)}))""")
+    assert [r["camera"] for r in rows] == ["left", "right-cam"]
+    for row, cam in zip(rows, summary["cameras"], strict=True):
+        model, rmse, alone, frames = row["cells"]
+        assert model == cam["model"] == "zhang" and frames == "8"
+        assert rmse == f"{cam['rmse']:.3f} px" and alone == f"{cam['rmse_alone']:.3f} px"
+        assert 0.1 < float(rmse.split()[0]) < 0.4
+    assert "(reference)" in page.text_content("#rig-summary tbody tr[data-camera=left] th")
+    total = page.eval_on_selector_all("#rig-total td", "cs => cs.map(c => c.textContent)")
+    assert total[1] == f"{summary['metrics']['rmse']:.3f} px" and total[3] == "8 used"
+    assert "models refined together" in page.text_content("#rig-summary caption")
+    page.locator("#rig").screenshot(path=shots / "02-rig-done.png")
+
+    # the downloads are the job's files: rig.json is freecal.rig/1, the exports are there too
+    files = page.eval_on_selector_all("#rig-downloads a", "as => as.map(a => a.dataset.file)")
+    assert files == ["rig.json", "camchain.yaml", "stereo.yaml"]
+    base = f"http://127.0.0.1:{service.port}"
+    doc = json.loads(page.request.get(base + page.get_attribute("#rig-downloads a[data-file='rig.json']", "href")).text())
+    assert doc["format"] == "freecal.rig/1" and [c["name"] for c in doc["cameras"]] == ["left", "right-cam"]
+    for name in ("camchain.yaml", "stereo.yaml"):
+        assert page.request.get(base + page.get_attribute(f"#rig-downloads a[data-file='{name}']", "href")).ok
+
+    # a reload lists the rig; opening it shows its summary again
+    page.reload()
+    page.click(f"#rig-jobs button[data-job='{job['id']}']")
+    page.wait_for_selector("#rig-summary tbody tr[data-camera='right-cam']", timeout=10_000)
+    assert "left + right-cam" in page.text_content("#rig-jobs")
+    page.close()
+    assert not errors, errors
+
+
+def test_a_refused_rig_says_why_in_page_words_and_makes_no_job(browser, service, shots, pair):
+    ids = []
+    for path in pair:   # the sets straight through the API: this test is about the panel's refusal
+        r = service.client.post("/api/sets", files={"files": (path.name, path.read_text(), "application/json")})
+        assert r.status_code == 201, r.text
+        ids.append(r.json()["id"])
+    before = len(rig_jobs(service))
+    page, errors = open_page(browser, service)
+    for set_id in ids:
+        page.wait_for_selector(f"#rig-use-{set_id}", timeout=10_000)
+        page.check(f"#rig-use-{set_id}")
+        page.fill(f"#rig-name-{set_id}", "cam")   # the same name twice
+    page.click("#rig-submit")
+    page.wait_for_selector("#rig-message:not([hidden])")
+    message = page.text_content("#rig-message")
+    assert message.startswith("The camera names: 'cam' is given to more than one camera"), message
+    page.locator("#rig").screenshot(path=shots / "03-rig-refused.png")
+
+    page.uncheck(f"#rig-use-{ids[1]}")   # one camera only
+    page.click("#rig-submit")
+    wait_until(page, "document.querySelector('#rig-message').textContent.includes('two or more cameras')", 10_000)
+    message = page.text_content("#rig-message")
+    assert message.startswith("The cameras' sets: a rig needs two or more cameras"), message
+    assert "set_ids" not in message
+    assert len(rig_jobs(service)) == before   # nothing was created
+    page.close()
+    assert not errors, errors

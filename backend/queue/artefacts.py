@@ -11,6 +11,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from calib_core import Calibration, Observations
 from calib_core.calibration import json_safe
 from calib_core.errors import CalibError
@@ -93,12 +95,16 @@ def write_rig(out: Path, rig: Rig, progress: Callable[[str, float], None]) -> tu
 
 
 def rig_summary(rig: Rig, unavailable: dict[str, str]) -> dict[str, Any]:
-    """What the jobs list shows of a rig: each camera's error in the rig (and alone), the rig's, the frames used."""
+    """What the jobs list shows of a rig: each camera's place (its optical centre in the reference camera's frame,
+    in the board's units, and its rotation from it), error in the rig (and alone), the rig's, the frames used."""
     report = rig.diagnostics["cameras"]
     cameras = [{"name": c.name, "model": c.calibration.settings.get("chosen", c.calibration.method),
+                "centre": c.centre.tolist(), "distance": float(np.linalg.norm(c.centre)),
+                "rotation_deg": c.rotation_deg,
                 "rmse": report[c.name]["rmse_in_rig"], "rmse_alone": report[c.name]["rmse_alone"],
                 "n_frames": report[c.name]["n_frames"]} for c in rig.cameras]
-    return json_safe({"reference": rig.reference, "cameras": cameras, "metrics": rig.metrics.to_json(),
+    units = rig.cameras[0].calibration.provenance.get("tvec_units")
+    return json_safe({"reference": rig.reference, "units": units, "cameras": cameras, "metrics": rig.metrics.to_json(),
                       "n_frames": len(rig.frames), "models_refined": rig.diagnostics["solver"]["models_refined"],
                       "warnings": rig.diagnostics.get("warnings", []), "exports_unavailable": unavailable})
 

@@ -12,6 +12,7 @@ from ..errors import FormatError
 from ..json_fields import json_object, number, required, whole
 from ..models import camera
 from ..observations import read_json, write_json
+from .poses import inverse
 
 FORMAT = "freecal.rig/1"
 
@@ -29,6 +30,16 @@ class RigCamera:
     @property
     def pose(self) -> np.ndarray:
         return np.concatenate([self.rvec, self.tvec])
+
+    @property
+    def centre(self) -> np.ndarray:
+        """(3,) the camera's optical centre in the reference camera's frame (the board's units)."""
+        return inverse(self.pose)[3:]
+
+    @property
+    def rotation_deg(self) -> float:
+        """The angle of its rotation from the reference camera."""
+        return float(np.degrees(np.linalg.norm(self.rvec)))
 
 
 @dataclass

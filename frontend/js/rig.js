@@ -154,19 +154,28 @@ function downloads(job) {
     ...order.map((n) => el("a", { href: apiUrl(files[n]), download: "", "data-file": n }, LABELS[n] || n)));
 }
 
+// A camera's place: its distance from the reference camera and its rotation from it; x, y, z on hover.
+function place(c, units) {
+  if (c.distance == null || c.rotation_deg == null) return el("td", {}, "–");
+  const short = /^[a-zA-Zµ]{1,3}$/.test(units || "") ? ` ${units}` : "";  // "mm", "m", "in"; else the board's units
+  const xyz = (c.centre || []).map((v) => v.toFixed(1)).join(", ");
+  return el("td", { class: "place", title: `optical centre (x, y, z) = (${xyz})${short || " in the board's units"}` },
+    `${c.distance.toFixed(1)}${short} · ${c.rotation_deg.toFixed(2)}°`);
+}
+
 function summaryTable(s) {
   const m = s.metrics || {};
   const rowsOf = (s.cameras || []).map((c) => el("tr", { "data-camera": c.name, class: c.name === s.reference ? "reference" : "" },
     el("th", { scope: "row" }, c.name === s.reference ? `${c.name} (reference)` : c.name),
-    el("td", { class: "model" }, c.model || "–"), el("td", {}, px(c.rmse)), el("td", {}, px(c.rmse_alone)),
+    el("td", { class: "model" }, c.model || "–"), place(c, s.units), el("td", {}, px(c.rmse)), el("td", {}, px(c.rmse_alone)),
     el("td", {}, c.n_frames != null ? String(c.n_frames) : "–")));
   return el("div", { class: "table-wrap" }, el("table", { id: "rig-summary" },
     el("caption", {}, `The rig: ${(s.cameras || []).length} cameras placed from ${s.reference}` +
       (s.models_refined ? ", models refined together" : ", models as calibrated alone")),
-    el("thead", {}, el("tr", {}, ["camera", "model", "rms in the rig", "rms alone", "frames"].map((h) => el("th", { scope: "col" }, h)))),
+    el("thead", {}, el("tr", {}, ["camera", "model", "from the reference", "rms in the rig", "rms alone", "frames"].map((h) => el("th", { scope: "col" }, h)))),
     el("tbody", {}, rowsOf),
     el("tfoot", {}, el("tr", { id: "rig-total" }, el("th", { scope: "row" }, "the rig"),
-      el("td", {}, m.n_points != null ? `${m.n_points} corners` : ""),
+      el("td", {}, m.n_points != null ? `${m.n_points} corners` : ""), el("td", {}, ""),
       el("td", { title: m.rmse_axis != null ? `per axis ${px(m.rmse_axis)}` : null }, px(m.rmse)), el("td", {}, ""),
       el("td", {}, s.n_frames != null ? `${s.n_frames} used` : "–")))));
 }

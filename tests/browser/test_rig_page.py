@@ -79,13 +79,14 @@ def test_a_stereo_pair_is_calibrated_from_the_rig_panel(browser, service, shots,
         camera: r.dataset.camera, cells: [...r.querySelectorAll('td')].map(c => c.textContent)}))""")
     assert [r["camera"] for r in rows] == ["left", "right-cam"]
     for row, cam in zip(rows, summary["cameras"], strict=True):
-        model, rmse, alone, frames = row["cells"]
+        model, place, rmse, alone, frames = row["cells"]
         assert model == cam["model"] == "zhang" and frames == "8"
+        assert place == f"{cam['distance']:.1f} {summary['units']} · {cam['rotation_deg']:.2f}°"
         assert rmse == f"{cam['rmse']:.3f} px" and alone == f"{cam['rmse_alone']:.3f} px"
         assert 0.1 < float(rmse.split()[0]) < 0.4
     assert "(reference)" in page.text_content("#rig-summary tbody tr[data-camera=left] th")
     total = page.eval_on_selector_all("#rig-total td", "cs => cs.map(c => c.textContent)")
-    assert total[1] == f"{summary['metrics']['rmse']:.3f} px" and total[3] == "8 used"
+    assert total[2] == f"{summary['metrics']['rmse']:.3f} px" and total[4] == "8 used"
     assert "models refined together" in page.text_content("#rig-summary caption")
     page.locator("#rig").screenshot(path=shots / "02-rig-done.png")
 

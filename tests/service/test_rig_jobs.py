@@ -10,11 +10,12 @@ import cv2
 import numpy as np
 import pytest
 import yaml
+from scipy.spatial.transform import Rotation
 
 from backend.cli import main
 from calib_core.rig import Rig
 
-from ..core.test_rig import simulated_rig
+from ..core.test_rig import TRUE_EXTRINSICS, simulated_rig
 from .harness import FAST, SLOW, Service, wait_job
 
 
@@ -79,6 +80,13 @@ def test_a_rig_job_writes_what_freecal_rig_writes_and_its_exports_read_back(serv
     assert all(0.1 < cam["rmse"] < 0.4 and cam["n_frames"] == 8 and cam["model"] == "zhang"
                for cam in summary["cameras"])
     assert summary["n_frames"] == 8 and 0.1 < summary["metrics"]["rmse"] < 0.4 and summary["models_refined"]
+    # the right camera's place: the simulated rig's (tests/core/test_rig.py: TRUE_EXTRINSICS), from rig.json's pose
+    right = summary["cameras"][1]
+    true = TRUE_EXTRINSICS[1]
+    centre = -Rotation.from_rotvec(true[:3]).inv().apply(true[3:])
+    assert np.allclose(right["centre"], centre, atol=3.0) and abs(right["distance"] - np.linalg.norm(centre)) < 3.0
+    assert abs(right["rotation_deg"] - np.degrees(np.linalg.norm(true[:3]))) < 0.5
+    assert summary["cameras"][0]["distance"] == 0.0
     listed = c.get("/api/jobs", params={"kind": "rig"}).json()["jobs"]
     assert [j["id"] for j in listed] == [job["id"]] and listed[0]["summary"] == summary
     assert job["id"] not in [j["id"] for j in c.get("/api/jobs").json()["jobs"]]

@@ -33,7 +33,7 @@ from .field import set_component as _set_component
 
 PLANE_DEPTH = 0.5       # the ideal image plane's distance from the camera (scene units), unless a board is nearer
 AXIS_LENGTH = 0.2       # the camera's axes, scene units
-__all__ = ["COMPONENTS", "Built", "Pose", "build_scene", "set_component"]
+__all__ = ["COMPONENTS", "Built", "Pose", "add_camera", "build_scene", "overview", "set_component"]
 
 
 @dataclass(frozen=True)
@@ -86,7 +86,7 @@ def build_scene(scene: Any, result: JobResult, component: str = COMPONENTS[0]) -
     drawn = np.vstack([points, plane, np.zeros((1, 3))])   # boards, image plane, camera
     extent = np.array([drawn.min(axis=0), drawn.max(axis=0)])
     add_field(scene, built.handles, built.legend, cal, extent, component)
-    built.view = _overview(points)
+    built.view = overview(points)
     return built
 
 
@@ -97,20 +97,31 @@ def set_component(built: Built, component: str) -> None:
 
 def _add_camera(scene: Any, handles: dict[str, Any], result: JobResult, depth: float) -> None:
     """The camera at the origin: its frame with labelled axes, and its frustum reaching the image plane."""
-    w, h = result.image_size
-    fy = result.calibration.model.intrinsics_json()["fy"]
-    handles["/cameras/0"] = scene.add_frame("/cameras/0", show_axes=True, axes_length=AXIS_LENGTH,
-                                            axes_radius=AXIS_LENGTH * 0.03)
-    handles["/cameras/0/frustum"] = scene.add_camera_frustum(
-        "/cameras/0/frustum", fov=float(2.0 * np.arctan2(h / 2.0, fy)), aspect=w / h, scale=depth * 0.6,
-        color=(40, 40, 40), thickness=0.004)
-    tips = {"x": ((AXIS_LENGTH * 1.1, 0, 0), "x right"), "y": ((0, AXIS_LENGTH * 1.1, 0), "y down"),
-            "z": ((0, 0, AXIS_LENGTH * 1.1), "z optical axis")}
-    for axis, (tip, text) in tips.items():
-        handles[f"/cameras/0/{axis}"] = scene.add_label(f"/cameras/0/{axis}", text, position=tip,
+    add_camera(scene, handles, "/cameras/0", result.calibration, depth * 0.6, "camera", axes=AXIS_LENGTH)
+
+
+def add_camera(scene: Any, handles: dict[str, Any], path: str, calibration: Any, size: float, label: str, *,
+               colour: tuple[int, int, int] = (40, 40, 40), axes: float = 0.0,
+               wxyz: Any = (1.0, 0.0, 0.0, 0.0), position: Any = (0.0, 0.0, 0.0)) -> None:
+    """One camera under ``path``: a frame at its pose (camera → scene), its frustum (``size`` deep, the
+    image's aspect and vertical field of view) in ``colour``, its name; with ``axes`` > 0 its axes that long,
+    labelled x right, y down, z optical axis (``path``/x, /y, /z). The rig's scene draws its cameras with it."""
+    w, h = calibration.image_size
+    fy = calibration.model.intrinsics_json()["fy"]
+    handles[path] = scene.add_frame(path, show_axes=axes > 0, axes_length=axes or AXIS_LENGTH,
+                                    axes_radius=(axes or AXIS_LENGTH) * 0.03, wxyz=tuple(float(q) for q in wxyz),
+                                    position=tuple(float(x) for x in position))
+    handles[f"{path}/frustum"] = scene.add_camera_frustum(
+        f"{path}/frustum", fov=float(2.0 * np.arctan2(h / 2.0, fy)), aspect=w / h, scale=size,
+        color=colour, thickness=0.004)
+    if axes > 0:
+        tips = {"x": ((axes * 1.1, 0, 0), "x right"), "y": ((0, axes * 1.1, 0), "y down"),
+                "z": ((0, 0, axes * 1.1), "z optical axis")}
+        for axis, (tip, text) in tips.items():
+            handles[f"{path}/{axis}"] = scene.add_label(f"{path}/{axis}", text, position=tip,
                                                         anchor="center-left", font_screen_scale=0.8)
-    handles["/cameras/0/label"] = scene.add_label("/cameras/0/label", "camera", position=(0, -AXIS_LENGTH * 0.4, 0),
-                                                  anchor="bottom-center")
+    handles[f"{path}/label"] = scene.add_label(f"{path}/label", label, position=(0, -(axes or size) * 0.4, 0),
+                                               anchor="bottom-center")
 
 
 def _add_image_plane(scene: Any, built: Built, result: JobResult, depth: float, vmax: float) -> np.ndarray:
@@ -152,8 +163,8 @@ def _add_image_plane(scene: Any, built: Built, result: JobResult, depth: float, 
     return corners
 
 
-def _overview(points: np.ndarray) -> Pose:
-    """Behind, above and to the right of the camera, far enough to see it and every board."""
+def overview(points: np.ndarray) -> Pose:
+    """Behind, above and to the right of the camera (the origin), far enough to see it and every point."""
     everything = np.vstack([points, np.zeros((1, 3))])
     centre = (everything.min(axis=0) + everything.max(axis=0)) / 2.0
     radius = max(float(np.linalg.norm(everything - centre, axis=1).max()), 0.3)

@@ -38,6 +38,17 @@ def job_label(job: dict[str, Any], set_name: str | None) -> str:
     return " · ".join(p for p in parts if p)
 
 
+def rig_label(job: dict[str, Any]) -> str:
+    """A rig job's name in the panel, as the page's Rig card names it (frontend/js/rig.js ``rigName``):
+    "Rig left + right · zhang · 14:05 · 0.262 px"."""
+    spec = (job.get("settings") or {}).get("rig") or {}   # repository.jobs.RIG_KEY
+    rmse = ((job.get("summary") or {}).get("metrics") or {}).get("rmse")
+    parts = ["Rig " + " + ".join(spec.get("names") or []), job.get("method") or "", when(job.get("created_at"))]
+    if isinstance(rmse, (int, float)):
+        parts.append(f"{rmse:.3f} px")
+    return " · ".join(p for p in parts if p.strip())
+
+
 def unique_labels(jobs: list[tuple[str, str]]) -> dict[str, str]:
     """(job id, label) pairs → label → job id; equal labels (two runs in one minute) get " (2)", " (3)"."""
     out: dict[str, str] = {}

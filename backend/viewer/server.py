@@ -4,6 +4,8 @@ viser's client cannot tell the server its URL, but the proxy passes what the
 tab's URL asked for (``gate.Asked``: the job on the page's screen, the page's
 pairing key), so a tab opens on the job its page showed; without one, on the
 job asked for last by POST /api/viewer (``focus``), else the newest done job.
+A rig job is drawn by ``rig_scene.py`` (its cameras and the board at its frames)
+in the same tab, from the same job list.
 Its controls then switch job, method, layers and distortion component for that
 tab alone (per-client scenes: two tabs never fight over one scene), and the
 view selected on its page is highlighted (``selection.py``), both ways.
@@ -20,7 +22,8 @@ from . import data
 from .gate import ProxyOnly
 from .layers import LAYERS, highlight, present, set_layers
 from .legend import legend
-from .names import job_label, unique_labels
+from .names import job_label, rig_label, unique_labels
+from .rig_scene import build_rig_scene, rig_legend
 from .scene import COMPONENTS, Built, Pose, build_scene, set_component
 from .selection import Selected, Selections
 
@@ -139,7 +142,8 @@ class Viewer:
 
     def _job_labels(self, session: Session) -> list[str]:
         names = data.set_names(self.ctx)
-        session.labels = unique_labels([(j["id"], job_label(j, names.get(j["set_id"] or "")))
+        session.labels = unique_labels([(j["id"], rig_label(j) if j["kind"] == "rig"
+                                         else job_label(j, names.get(j["set_id"] or "")))
                                         for j in data.done_jobs(self.ctx)])
         return list(session.labels) or [NONE]
 
@@ -156,30 +160,36 @@ class Viewer:
             if result is None:
                 session.client.scene.reset()
                 session.built = Built()
-                session.gui["gui_legend"].content = "Finish a calibration job, then press *Reload job list*."
+                session.gui["gui_legend"].content = ("Finish a calibration or rig job, "
+                                                     "then press *Reload job list*.")
                 return
+            rig = isinstance(result, data.RigResult)
             with session.client.atomic():
-                session.built = build_scene(session.client.scene, result, session.component)
+                session.built = (build_rig_scene(session.client.scene, result) if isinstance(result, data.RigResult)
+                                 else build_scene(session.client.scene, result, session.component))
                 set_layers(session.built.handles, session.layers)
-                highlight(session.built.handles, session.built.views, session.selected_view)
-            self._on_board_click(session)
+                highlight(session.built.handles, session.built.views, None if rig else session.selected_view)
+            self._on_board_click(session, paired=not rig)
             has = present(session.built.handles)
-            # no field, no knots: the box stays, greyed, and the legend says why
-            session.gui["gui_layer_Knot grid"].disabled = "Knot grid" not in has
+            # no field, no knots (or a rig: boards alone): the box stays, greyed, and the legend says why
+            for name in LAYERS:
+                session.gui[f"gui_layer_{name}"].disabled = name not in has
+            session.gui["gui_component"].disabled = rig
             self._methods(session, result)
-            session.gui["gui_legend"].content = legend(result, session.built)
+            session.gui["gui_legend"].content = (rig_legend(result, session.built) if isinstance(result, data.RigResult)
+                                                 else legend(result, session.built))
         # viser calls a tab connected once it has reported its camera: it can be aimed from the start
         self._aim(session, session.built.view)
 
-    def _on_board_click(self, session: Session) -> None:
-        """A board clicked in 3D selects its view here and on the paired page."""
+    def _on_board_click(self, session: Session, paired: bool = True) -> None:
+        """A board clicked in 3D selects its view here and on the paired page (a rig's frame: here only)."""
         for i, view in enumerate(session.built.views):
             sheet = session.built.handles.get(f"/boards/{i}/plane")
             if sheet is not None:
-                sheet.on_click(lambda _, view=view: self._clicked(session, view))
+                sheet.on_click(lambda _, view=view: self._clicked(session, view, paired))
 
-    def _clicked(self, session: Session, view: str) -> None:
-        if session.pair:
+    def _clicked(self, session: Session, view: str, paired: bool = True) -> None:
+        if session.pair and paired:
             self.selections.choose(session.pair, view, "3d")
             for other in list(self.sessions.values()):
                 if other.pair == session.pair:
@@ -198,10 +208,13 @@ class Viewer:
         camera.position = pose.position
         camera.look_at = pose.look_at
 
-    def _methods(self, session: Session, result: data.JobResult) -> None:
-        """The method dropdown lists the methods with a done job on the same set."""
+    def _methods(self, session: Session, result: data.JobResult | data.RigResult) -> None:
+        """The method dropdown lists the methods with a done job on the same set (a rig: its own alone)."""
         job = self._job(result.job_id)
-        same = [j for j in data.done_jobs(self.ctx) if job is not None and j["set_id"] == job["set_id"]]
+        same = [j for j in data.done_jobs(self.ctx) if job is not None and j["kind"] == job["kind"] == "calibrate"
+                and j["set_id"] == job["set_id"]]
+        if job is not None and job["kind"] == "rig":
+            same = [job]
         methods = sorted({j["method"] for j in same}) or ["—"]
         session.gui["gui_method"].options = methods
         session.gui["gui_method"].value = job["method"] if job and job["method"] in methods else methods[0]
@@ -209,10 +222,10 @@ class Viewer:
     def _pick_method(self, session: Session) -> None:
         job = self._job(session.job_id) if session.job_id else None
         method = session.gui["gui_method"].value
-        if job is None or job["method"] == method:
+        if job is None or job["method"] == method or job["kind"] != "calibrate":
             return
         newest = next((j for j in data.done_jobs(self.ctx)
-                       if j["set_id"] == job["set_id"] and j["method"] == method), None)
+                       if j["kind"] == "calibrate" and j["set_id"] == job["set_id"] and j["method"] == method), None)
         label = next((lab for lab, jid in session.labels.items() if newest and jid == newest["id"]), None)
         if label is not None:
             session.gui["gui_job"].value = label   # its on_update redraws

@@ -7,6 +7,7 @@ from typing import Any
 from fastapi import APIRouter, Query, Request
 from pydantic import BaseModel, Field
 
+from ...viewer.data import VIEWABLE
 from ..bounded_json import BoundedJSONRoute
 from ..deps import ContextDep
 from ..errors import ApiError
@@ -66,12 +67,13 @@ def read_viewer(request: Request) -> ViewerPublic:
 @router.post("", response_model=ViewerPublic, responses={404: {"model": Message}, 409: {"model": Message},
                                                          503: {"model": Message}})
 def open_viewer(request: Request, ctx: ContextDep, body: ViewerOpen) -> ViewerPublic:
-    """Make the next opened 3D view whose URL names no job start on this done job (its controls switch later)."""
+    """Make the next opened 3D view whose URL names no job start on this done job, a calibration or a rig
+    (its controls switch later)."""
     viewer = _running(request)
     job = job_service.get(ctx, body.job_id)
-    if job["state"] != "done" or job["kind"] != "calibrate":
+    if job["state"] != "done" or job["kind"] not in VIEWABLE:
         raise ApiError(409, f"job {body.job_id} is a {job['kind']} job in state {job['state']}: "
-                            "the 3D view shows done calibration jobs")
+                            "the 3D view shows done calibration and rig jobs")
     viewer.focus = body.job_id
     return _public(request)
 

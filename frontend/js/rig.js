@@ -1,10 +1,12 @@
 // The rig panel: several ready sets, one per camera, calibrated together (POST /api/jobs with
 // "kind": "rig"); the rig jobs listed, the chosen one's progress (cancellable), then its summary
-// (each camera's model and rms in the rig and alone, the rig's rms, frames, warnings) and downloads.
+// (each camera's model and rms in the rig and alone, the rig's rms, frames, warnings), downloads and
+// its 3D view (the cameras at their poses, the board at every frame: viewer.js).
 // The service checks the request: a refusal is shown here, in page words, and no job is made.
 import { api, apiUrl } from "./api.js";
 import { el, px, seconds } from "./format.js";
 import { when } from "./names.js";
+import { renderRigViewer } from "./viewer.js";
 import { pageWords } from "./words.js";
 
 const LABELS = { "rig.json": "Rig (freecal JSON)", "camchain.yaml": "Kalibr camchain (YAML)",
@@ -144,7 +146,9 @@ function renderRigJob(job) {
   const out = document.getElementById("rig-result");
   out.replaceChildren();
   if (job.state !== "done") return;
-  out.append(downloads(job), summaryTable(job.summary || {}), notes(job.summary || {}));
+  const view = el("div", { id: "rig-viewer3d" });
+  out.append(downloads(job), summaryTable(job.summary || {}), notes(job.summary || {}), view);
+  renderRigViewer(job, view).catch((e) => view.replaceChildren(el("p", { class: "muted" }, `3D view: ${pageWords(e.message || String(e))}`)));
 }
 
 function downloads(job) {

@@ -23,7 +23,7 @@ document.addEventListener("click", async (event) => {
 });
 
 async function poll() {
-  if (document.hidden || !document.querySelector(".viewer-frame, #open-3d-tab")) return;
+  if (document.hidden || !document.querySelector("#viewer3d .viewer-frame, #open-3d-tab")) return;
   let got;
   try { got = await api.viewSelection(PAIR); } catch { return; }
   if (got.seq > state.seq) {

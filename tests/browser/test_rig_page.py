@@ -1,19 +1,22 @@
 """The rig panel in real Chromium against `freecal serve`: a stereo pair's corners uploaded as two
 sets from the page (synthetic cameras of tests/core/test_rig.py, frames 000-007 in both), ticked in
 the panel, named, calibrated together; the summary table is the job's summary, the downloads are
-the job's files, a reload lists the rig again; a refused rig says why in page words and makes no job.
+the job's files, the rig's 3D view opens on the rig (a frustum per camera, the board at every frame),
+a reload lists the rig again; a refused rig says why in page words and makes no job.
 Screenshots go to test-artifacts/rig-page/.
 """
 from __future__ import annotations
 
 import json
+import urllib.parse
 
 import pytest
 
 from ..core.test_rig import simulated_rig
+from ..service.harness import wait_for
 from .conftest import page_service, screenshots, wait_until
 
-service = page_service("rig-page", FREECAL_VIEWER="0")
+service = page_service("rig-page", FREECAL_VIEWER_PORT="0")
 shots = screenshots("rig-page")
 
 
@@ -98,6 +101,25 @@ def test_a_stereo_pair_is_calibrated_from_the_rig_panel(browser, service, shots,
     assert doc["format"] == "freecal.rig/1" and [c["name"] for c in doc["cameras"]] == ["left", "right-cam"]
     for name in ("camchain.yaml", "stereo.yaml"):
         assert page.request.get(base + page.get_attribute(f"#rig-downloads a[data-file='{name}']", "href")).ok
+
+    # the rig's 3D view, embedded: its scene (server side) has a frustum per camera and the board at every frame
+    page.click("#rig-open-3d")
+    frame = page.wait_for_selector("#rig-viewer3d iframe.viewer-frame")
+
+    def scene():
+        clients = service.client.get("/api/viewer").json()["clients"]
+        return next((c for c in clients if c["job_id"] == job["id"] and c["nodes"]), None)
+
+    shown = wait_for(scene, 60, "the 3D view to connect and draw the rig", service.logs())
+    nodes = set(shown["nodes"])
+    assert {"/cameras/0/frustum", "/cameras/1/frustum", "/cameras/0/label", "/cameras/0/z"} <= nodes
+    assert {f"/boards/{k}/outline" for k in range(8)} <= nodes and "/field/dx" not in nodes
+    assert shown["job_label"].startswith("Rig left + right-cam · zhang · ") and shown["layers"] == {"Boards": True}
+    for url in (frame.get_attribute("src"), page.get_attribute("#rig-open-3d-tab", "href")):
+        assert f"job={job['id']}" in urllib.parse.unquote(url) and "pair=" not in url, url   # no per-view table to pair
+    page.locator("#rig").screenshot(path=shots / "02b-rig-3d.png")
+    # a view whose URL names no job may be asked to open on the rig too (POST /api/viewer)
+    assert service.client.post("/api/viewer", json={"job_id": job["id"]}).json()["focus"] == job["id"]
 
     # a reload lists the rig; opening it shows its summary again
     page.reload()

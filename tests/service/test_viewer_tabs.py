@@ -5,7 +5,8 @@ set: a tab whose websocket URL names a job (as the page's "Show in 3D" and "open
 in a new tab" do: ``frontend/js/api.js`` ``viewerUrl``) shows that job, whatever
 was asked last by POST /api/viewer; its panel names jobs as the page does; the
 view selected on the page (``/api/viewer/selection``) is highlighted in the tab
-paired with it; a model without a field gets no knot grid.
+paired with it; a model without a field gets no knot grid; a tab opened on a done
+rig job draws the rig (a frustum per camera, the board at every frame).
 """
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from contextlib import contextmanager
 import pytest
 
 from ..conftest import synthetic
+from ..core.test_rig import simulated_rig
 from .harness import FAST, QUICK, Service, create_job, upload_observations, wait_for, wait_job
 
 pytestmark = pytest.mark.slow
@@ -134,3 +136,21 @@ def test_the_view_selected_is_highlighted_in_3d_and_back(service, jobs):
         assert picked["view"] in views and picked["view"] != name and picked["seq"] > got["seq"]
         assert shown(service, jobs["field"])["highlighted"] == [picked["view"]]
     assert service.client.get("/api/viewer/selection", params={"pair": "short"}).status_code == 422
+
+
+def test_a_tab_opens_on_a_rig_job_and_draws_its_cameras_and_frames(service):
+    pair = simulated_rig([range(0, 5), range(0, 5)], seed=2)
+    set_ids = [upload_observations(service.client, obs.to_json()) for obs in pair.values()]
+    r = service.client.post("/api/jobs", json={"kind": "rig", "set_ids": set_ids, "names": ["left", "right"],
+                                               "method": "zhang", "hold_models": True})
+    assert r.status_code == 201, r.text
+    rig_id = r.json()["id"]
+    assert wait_job(service.client, rig_id, 120, service.logs())["state"] == "done"
+    assert service.client.post("/api/viewer", json={"job_id": rig_id}).json()["focus"] == rig_id
+    with tab(service, job=rig_id):
+        client = shown(service, rig_id)
+        nodes = set(client["nodes"])
+        assert {"/cameras/0/frustum", "/cameras/1/frustum", "/cameras/0/x", "/cameras/1/label"} <= nodes
+        assert {f"/boards/{k}/outline" for k in range(5)} <= nodes
+        assert not {"/field/dx", "/image_plane/outline", "/residuals/vectors"} & nodes
+        assert client["job_label"].startswith("Rig left + right · zhang · ") and client["layers"] == {"Boards": True}

@@ -87,20 +87,6 @@ def test_serial_and_forked_agree(images, monkeypatch):
     assert [r.to_json() for r in a.reports] == [r.to_json() for r in b.reports]
 
 
-def test_no_fork_while_another_thread_runs():
-    """A thread could hold a lock or be inside OpenCV at the fork (the service detects on threads)."""
-    import threading
-
-    release = threading.Event()
-    other = threading.Thread(target=release.wait)
-    other.start()
-    try:
-        assert not detect._may_fork()
-    finally:
-        release.set()
-        other.join()
-
-
 def test_a_dead_forked_worker_leaves_its_images_to_the_threads(images, monkeypatch):
     serial = detect_images(images, BOARD, workers=1)
     dead = []

@@ -1,11 +1,10 @@
 """From photos to corners: detect a board in many images, on all cores.
 
 ``detect_images`` is the public entry (the CLI and the web service call it).
-Each image is detected on its own (``detect_image.detect_file``): beside this
-process in workers forked from it (where it may fork: ``_may_fork``), on
-threads of this process for short sets, or in a fork server's workers for
-long sets where it may not fork; if a process pool cannot be had (sandbox,
-frozen app, a crashed worker) the rest run on the threads. Every image gets a report, used or rejected, with the reason in
+Each image is detected on its own (``detect_image.detect_file``), on threads
+of this process, or in worker processes for long sets; if a process pool
+cannot be had (sandbox, frozen app, a crashed worker) the rest run on the
+threads. Every image gets a report, used or rejected, with the reason in
 plain words.
 """
 from __future__ import annotations
@@ -13,9 +12,8 @@ from __future__ import annotations
 import concurrent.futures as cf
 import multiprocessing as mp
 import os
-import threading
 import time
-from collections import Counter, deque
+from collections import Counter
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -89,11 +87,6 @@ def image_paths(items: Iterable[str | Path]) -> list[Path]:
 # enough for processes to pay (the Python of growth and checks holds the GIL, about
 # a third of an image's time on OpenCV's 9x6 photos; OpenCV's detectors release it).
 POOL_PAYS_AFTER = 1.5  # seconds of CPU left after the first image
-# Forked from this process (where that is safe: ``_may_fork``), a worker needs no imports and
-# is up in 15-40 ms, each image then costing about 0.4 ms of pickling; this process detects
-# images too meanwhile. On OpenCV's 9x6 photos (about 12 ms each) threads gained nothing on
-# two cores: each photo's Python holds the GIL while the other thread waits for it.
-FORK_PAYS_AFTER = 0.1  # seconds of CPU left after the first image
 
 
 def detect_images(paths, board: BoardSpec | Target, progress: Callable[[int, int], None] | None = None,
@@ -162,9 +155,7 @@ def _run_all(files, names, board, progress, workers, model=None) -> list[ImageRe
     start = time.process_time()
     finished(0, _call(jobs[0]))
     left = (time.process_time() - start) * (total - 1)
-    if n > 1 and left > FORK_PAYS_AFTER and _may_fork():
-        _on_forked(jobs, [k for k in range(total) if results[k] is None], n, finished)
-    elif n > 1 and left > POOL_PAYS_AFTER:
+    if n > 1 and left > POOL_PAYS_AFTER:
         _on_processes(jobs, [k for k in range(total) if results[k] is None], n, finished)
     _on_threads(jobs, [k for k in range(total) if results[k] is None], n, finished)
     return results  # type: ignore[return-value]
@@ -201,59 +192,6 @@ def _on_processes(jobs: list[tuple], todo: list[int], n: int, finished: Callable
         pass  # no pool here (sandbox, no /dev/shm...): the threads take the rest
 
 
-def _may_fork() -> bool:
-    """True where this process may fork its workers: fork exists, and no other Python thread
-    runs (one could hold a lock, or be inside OpenCV, at the fork). The command line and the
-    benchmarks detect on their main thread; the service's jobs run on threads, so they take
-    the fork server's pool (``_on_processes``)."""
-    return ("fork" in mp.get_all_start_methods() and threading.active_count() == 1
-            and threading.current_thread() is threading.main_thread())
-
-
-def _on_forked(jobs: list[tuple], todo: list[int], n: int, finished: Callable[[int, ImageResult], None]) -> None:
-    """Jobs ``todo`` on n - 1 processes forked from this one and on this process's own thread,
-    from one queue; images a dead worker took with it are left undone.
-
-    OpenCV's thread pool is set to one thread before the fork and back after: a forked child
-    inherits the pool without its threads and hangs in its first ``cv2.setNumThreads``
-    (measured: 39 of 40 children), but one that never calls it and inherits a pool of one
-    never touches the pool (0 of 60 hung, each detecting photos); one image per core then,
-    on both sides of the fork."""
-    import cv2
-
-    pending = deque(todo)
-    threads = cv2.getNumThreads()
-    cv2.setNumThreads(1)
-    try:
-        with cf.ProcessPoolExecutor(n - 1, mp_context=mp.get_context("fork"), initializer=_init_forked) as pool:
-            running: dict[cf.Future, int] = {}
-            while pending or running:
-                for fut in [f for f in running if f.done()]:
-                    k = running.pop(fut)
-                    try:
-                        finished(k, fut.result())
-                    except Exception:  # a dead worker: this image is retried on a thread
-                        continue
-                while pending and len(running) < 2 * (n - 1):  # one running and one waiting per worker
-                    k = pending.popleft()
-                    running[pool.submit(*jobs[k])] = k
-                if pending:
-                    k = pending.popleft()
-                    finished(k, _call(jobs[k]))
-                elif running:
-                    cf.wait(running, return_when=cf.FIRST_COMPLETED)
-    except (OSError, PermissionError, NotImplementedError, cf.process.BrokenProcessPool, RuntimeError):
-        pass  # no pool here, or it broke: the threads take the rest
-    finally:
-        cv2.setNumThreads(threads)
-
-
-def _init_forked() -> None:
-    from ..lifetime import die_with_parent
-
-    die_with_parent()
-
-
 def _job(path: Path, board: BoardSpec | Target, name: str, model) -> tuple:
     """(function, its arguments) that detect ``board`` in one image file (in a worker)."""
     if isinstance(board, Target):
@@ -264,11 +202,11 @@ def _job(path: Path, board: BoardSpec | Target, name: str, model) -> tuple:
 def _context():
     """forkserver where there is one, preloaded with the detector; else spawn.
 
-    Not fork (for that, see ``_on_forked``): once this process has run any parallel OpenCV
-    call (an imwrite, a blur), a forked child inherits OpenCV's thread pool without its
-    threads, and its first ``cv2.setNumThreads`` waits forever on the pool's condition
-    variable (seen: the test suite hung). The fork server is a fresh interpreter that
-    imported OpenCV but never ran it, so workers start in milliseconds and clean.
+    Never fork: once this process has run any parallel OpenCV call (an imwrite, a blur),
+    a forked child inherits OpenCV's thread pool without its threads, and its first
+    ``cv2.setNumThreads`` waits forever on the pool's condition variable (seen: the
+    test suite hung). The fork server is a fresh interpreter that imported OpenCV but
+    never ran it, so workers start in milliseconds and clean.
     """
     methods = mp.get_all_start_methods()
     if "forkserver" in methods:

@@ -69,55 +69,6 @@ def test_serial_and_pool_agree(images, monkeypatch):
     assert [r.to_json() for r in a.reports] == [r.to_json() for r in b.reports]
 
 
-def test_serial_and_forked_agree(images, monkeypatch):
-    """Workers forked from this process (the command line's way) give every image's report as one process does,
-    with OpenCV's thread count as it was."""
-    if not detect._may_fork():
-        pytest.skip("this process may not fork (no fork, or other threads running)")
-    a = detect_images(images, BOARD, workers=1)
-
-    def no_pool(*args, **kwargs):
-        raise AssertionError("a fork server's pool was started where this process may fork")
-
-    monkeypatch.setattr(detect, "FORK_PAYS_AFTER", 0.0)  # these few images would not fork
-    monkeypatch.setattr(detect, "_on_processes", no_pool)
-    threads = cv2.getNumThreads()
-    b = detect_images(images, BOARD, workers=2, progress=lambda d, t: None)
-    assert cv2.getNumThreads() == threads
-    assert [r.to_json() for r in a.reports] == [r.to_json() for r in b.reports]
-
-
-def test_a_dead_forked_worker_leaves_its_images_to_the_threads(images, monkeypatch):
-    serial = detect_images(images, BOARD, workers=1)
-    dead = []
-
-    class Broken(cf.Future):
-        def __init__(self):
-            super().__init__()
-            self.set_exception(cf.process.BrokenProcessPool("a worker died"))
-
-    class Pool:
-        def __init__(self, *args, **kwargs):
-            pass
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            return False
-
-        def submit(self, *job):
-            dead.append(job)
-            return Broken()
-
-    monkeypatch.setattr(detect, "_may_fork", lambda: True)
-    monkeypatch.setattr(detect, "FORK_PAYS_AFTER", 0.0)
-    monkeypatch.setattr(detect.cf, "ProcessPoolExecutor", Pool)
-    det = detect_images(images, BOARD, workers=2)
-    assert dead  # the pool was given images, and they came back done anyway
-    assert [r.to_json() for r in det.reports] == [r.to_json() for r in serial.reports]
-
-
 def test_a_set_quicker_than_a_pools_start_is_detected_on_threads(images, monkeypatch):
     def no_pool(*args, **kwargs):
         raise AssertionError("a pool was started for a set this process detects faster alone")

@@ -1,13 +1,13 @@
 """Board detection: speed and corner accuracy, freecal against plain OpenCV.
 
 python -m benchmarks detect [--sets NAME,...] [--rendered KIND,...] [--views N] [--workers N]
-                            [--repeat N] [--target-views N] [--target-kind KIND]
+                            [--repeat N] [--cpu-repeat N] [--target-views N] [--target-kind KIND]
 
 - speed, per real set of ../shared/data: images per second of freecal's
   ``detect_images`` (all cores, partial boards, checks) against the plain loop
   most scripts use: per image ``cv2.findChessboardCorners`` + ``cornerSubPix``
   (ChArUco: ``CharucoDetector.detectBoard``), one process; the best of ``--repeat``
-  runs of each, taken in turn;
+  runs of each, taken in turn; and the CPU per image of each on one core (``--cpu-repeat``);
 - accuracy: BabelCalib fisheye corners against the authors' reference (.orpc),
   and rendered images (``freecal synth --images``) against exact corners. Corners
   are matched by position; "wrong" are those > 1 px from every reference corner;
@@ -93,6 +93,37 @@ def _race(repeat: int, ours, plain) -> tuple:
         obs, secs = plain()
         t_plain = min(t_plain, secs)
     return det, t_ours, obs, t_plain
+
+
+def cpu_per_image(repeat: int, ours, plain, n: int) -> tuple[float, float]:
+    """CPU seconds per image on one core (``time.process_time``, OpenCV on one thread) of
+    freecal's detection (``ours``, one worker) and of the plain loop, the best of ``repeat``
+    runs each taken in turn (fewer when a run takes over 10 s): the figures other work on a
+    shared machine disturbs least."""
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    best = [float("inf"), float("inf")]
+    try:
+        for _ in range(max(1, repeat)):
+            for k, fn in enumerate((ours, plain)):
+                t0 = time.process_time()
+                fn()
+                best[k] = min(best[k], time.process_time() - t0)
+            if best[0] > 10:
+                break
+    finally:
+        cv2.setNumThreads(threads)
+    return best[0] / max(n, 1), best[1] / max(n, 1)
+
+
+def _speed_row(label: str, n: int, det, t_ours: float, plain, t_plain: float, cpu: tuple[float, float] | None) -> tuple:
+    n_ours = len(det.observations.views) if det.observations else 0
+    n_plain = len(plain.views) if plain else 0
+    row = (label, n, f"{n_ours}/{n}", f"{n / t_ours:.2f}", f"{n_plain}/{n}", f"{n / t_plain:.2f}",
+           f"{t_plain / t_ours:.2f}")
+    if cpu is None:
+        return row + ("—", "—", "—")
+    return row + (f"{cpu[0] * 1e3:.1f}", f"{cpu[1] * 1e3:.1f}", f"{cpu[1] / cpu[0]:.2f}")
 
 
 def babel_reference(root: Path) -> Observations:
@@ -182,10 +213,9 @@ def _rendered(kind: str, args, speed: list, accuracy: list, same_id: list, refin
         det, t_ours, plain, t_plain = _race(args.repeat, partial(detect_images, tmp, board, workers=args.workers),
                                             partial(plain_opencv, image_paths([tmp]), board))
         label = f"rendered {kind} ({len(images)} views)"
-        n_ours = len(det.observations.views) if det.observations else 0
-        speed.append((label, len(images), f"{n_ours}/{len(images)}", f"{len(images) / t_ours:.2f}",
-                      f"{len(plain.views) if plain else 0}/{len(images)}", f"{len(images) / t_plain:.2f}",
-                      f"{t_plain / t_ours:.2f}"))
+        cpu = cpu_per_image(args.cpu_repeat, partial(detect_images, tmp, board, workers=1),
+                            partial(plain_opencv, image_paths([tmp]), board), len(images)) if args.cpu_repeat else None
+        speed.append(_speed_row(label, len(images), det, t_ours, plain, t_plain, cpu))
         accuracy.append(_row_accuracy(f"{label} vs truth: freecal", det.observations, truth, board.cols))
         accuracy.append(_row_accuracy(f"{label} vs truth: plain OpenCV", plain, truth, board.cols))
         visible = Observations(synth.IMAGE_SIZE, [refinable_truth(kind, p, f"{n}.png") for n, p in poses])
@@ -263,6 +293,8 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--workers", type=int, default=None, help="freecal's cores (default: all)")
     ap.add_argument("--repeat", type=int, default=3,
                     help="speed: runs of freecal and of the plain loop, in turn; the best of each is printed")
+    ap.add_argument("--cpu-repeat", type=int, default=3,
+                    help="CPU per image on one core: runs of each (freecal with one worker), the best printed (0: skip)")
     ap.add_argument("--refine", action="store_true",
                     help="also calibrate the rendered corners and re-detect through that calibration")
     args = ap.parse_args(argv)
@@ -276,14 +308,15 @@ def main(argv: list[str]) -> int:
             continue
         board = BoardSpec.parse(SETS[name])
         files = image_paths(_dirs(root))
+        load = os.getloadavg()[0]
         det, t_ours, plain, t_plain = _race(args.repeat, partial(detect_images, _dirs(root), board, workers=args.workers),
                                             partial(plain_opencv, files, board))
-        n_ours = len(det.observations.views) if det.observations else 0
-        n_plain = len(plain.views) if plain else 0
-        speed.append((name, len(files), f"{n_ours}/{len(files)}", f"{len(files) / t_ours:.2f}",
-                      f"{n_plain}/{len(files)}", f"{len(files) / t_plain:.2f}", f"{t_plain / t_ours:.2f}"))
+        cpu = cpu_per_image(args.cpu_repeat, partial(detect_images, _dirs(root), board, workers=1),
+                            partial(plain_opencv, files, board), len(files)) if args.cpu_repeat else None
+        speed.append(_speed_row(name, len(files), det, t_ours, plain, t_plain, cpu))
         found[name] = (det.observations, plain)
-        print(f"{name}: freecal {t_ours:.1f} s, plain OpenCV {t_plain:.1f} s", file=sys.stderr, flush=True)
+        print(f"{name}: freecal {t_ours:.2f} s, plain OpenCV {t_plain:.2f} s (load average {load:.1f} before, "
+              f"{os.getloadavg()[0]:.1f} after)", file=sys.stderr, flush=True)
 
     if "babelcalib-ov-plane-fisheye" in found:
         ref = babel_reference(DATA / "babelcalib-ov-plane-fisheye")
@@ -302,9 +335,11 @@ def main(argv: list[str]) -> int:
 
     cores = args.workers or os.cpu_count() or 1
     print(f"\nDetection speed, best of {args.repeat} runs each (freecal: {cores} cores, partial boards; plain: "
-          "findChessboardCorners + cornerSubPix, one process)\n")
+          "findChessboardCorners + cornerSubPix, one process); CPU ms per image on one core (OpenCV on one "
+          f"thread, freecal with one worker), best of {args.cpu_repeat}; load average now "
+          f"{' '.join(f'{x:.1f}' for x in os.getloadavg())} on {os.cpu_count()} cores\n")
     _print_table(["set", "images", "freecal found", "freecal img/s", "plain found", "plain img/s",
-                  "time ratio plain/freecal"], speed)
+                  "time ratio plain/freecal", "CPU ms/img freecal", "CPU ms/img plain", "CPU ratio"], speed)
     print("\nCorner accuracy, px to the nearest reference corner (wrong: > 1 px; lattice: worst view's "
           "share of ids one lattice motion maps onto the reference's)\n")
     _print_table(["corners of", "n", "median", "p95", "max", "< 0.5 px / wrong", "lattice"], accuracy)

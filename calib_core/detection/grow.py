@@ -36,7 +36,7 @@ grown lattice is shifted back onto the board keeping the square colours' parity.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -99,7 +99,7 @@ def _saddle_polish(gray: np.ndarray, lat: Lattice) -> np.ndarray:
     Measured on BabelCalib ov_plane, same corners: median distance to the authors' saddle
     detector 0.224 -> 0.032 px; on rendered fisheye views, to the truth 0.046 -> 0.023 px."""
     i, j = np.nonzero(lat.known)
-    e_col, e_row = lattice_steps(lat.p)
+    e_col, e_row = lat.steps()
     half = corner_refine.half_window(corner_refine.nearest_corner(e_col[i, j], e_row[i, j]))
     fitted, det, sure = corner_refine.saddle_points(gray, lat.p[i, j], half)
     spacing = corner_refine.nearest_corner(e_col[i, j], e_row[i, j])
@@ -128,6 +128,7 @@ class Lattice:
     cols: int
     rows: int
     parity: int = 0
+    _steps: tuple | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def of(cls, ids: np.ndarray, pts: np.ndarray, cols: int, rows: int) -> Lattice:
@@ -138,6 +139,13 @@ class Lattice:
     @property
     def known(self) -> np.ndarray:
         return np.isfinite(self.p[..., 0])
+
+    def steps(self) -> tuple[np.ndarray, np.ndarray]:
+        """``lattice_steps(self.p)``, kept until p changes (read only): a board seen whole asks
+        for them three times over an unchanged lattice."""
+        if self._steps is None or not np.array_equal(self._steps[0], self.p, equal_nan=True):
+            self._steps = (self.p.copy(), lattice_steps(self.p))
+        return self._steps[1]
 
     def even(self) -> np.ndarray:
         """(R, C) bool: the corner's top-left and bottom-right squares are bright."""
@@ -252,7 +260,7 @@ def _drop_inconsistent(lat: Lattice, rounds: int = 3) -> int:
     neighbourhood goes per round."""
     before = int(lat.known.sum())
     for _ in range(rounds):
-        e_col, e_row = lattice_steps(lat.p)
+        e_col, e_row = lat.steps()
         surprise = np.linalg.norm(predict(lat.p) - lat.p, axis=-1) / corner_refine.nearest_corner(e_col, e_row)
         surprise = np.where(np.isfinite(surprise), surprise, 0.0)
         s_at = Shifted(surprise, 1)
@@ -267,7 +275,7 @@ def _drop_inconsistent(lat: Lattice, rounds: int = 3) -> int:
 def _seed_check(gray: np.ndarray, lat: Lattice) -> tuple[np.ndarray | None, int]:
     """(R, C) bool of the given corners that read as X-junctions, and the colour parity they
     agree with (placement can misread colours on tagged or dim boards); None if too few agree."""
-    e_col, e_row = lattice_steps(lat.p)
+    e_col, e_row = lat.steps()
     k = lat.known & np.isfinite(e_col[..., 0]) & np.isfinite(e_row[..., 0])
     if k.sum() < 4:
         return None, 0
@@ -306,7 +314,7 @@ def _grow_front(gray: np.ndarray, lat: Lattice, tried: np.ndarray, unlit: np.nda
     if not cand.any():  # a whole board, seen whole: nothing to predict
         return False
     pred = predict(lat.p)
-    e_col, e_row = lattice_steps(lat.p)
+    e_col, e_row = lat.steps()
     cand &= np.isfinite(pred[..., 0]) & np.isfinite(e_col[..., 0]) & np.isfinite(e_row[..., 0])
     tried[cand] = n_nb[cand]
     return confirm(gray, lat, cand, pred, e_col, e_row, unlit) > 0

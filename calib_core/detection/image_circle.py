@@ -93,8 +93,15 @@ def find_image_circle(gray: np.ndarray) -> Circle | None:
     black = float(np.percentile(frame, 5))
     if black > MAX_FRAME_BLACK or np.mean(frame <= black + LIT_ABOVE_BLACK) < MIN_DARK_FRAME:
         return None
-    ends = _outermost_lit(cv2.GaussianBlur(small, (0, 0), 1.0) > black + LIT_ABOVE_BLACK)
-    leaves = (ends[:, 0] <= 1) | (ends[:, 1] <= 1) | (ends[:, 0] >= sw - 2) | (ends[:, 1] >= sh - 2)
+    lit = cv2.GaussianBlur(small, (0, 0), 1.0) > black + LIT_ABOVE_BLACK
+    # A ray whose farthest pixel lies at the frame's border and is lit leaves the frame lit: when
+    # too few rays are left to end inside it, there is no rim to look for (a dim photo lit to its
+    # border; each of OpenCV's 9x6 photos), decided from one pixel a ray.
+    last, at_border = _ray_ends(lit.shape)
+    if np.count_nonzero(~(lit.ravel()[last] & at_border)) < MIN_RIM_RAYS * CIRCLE_RAYS:
+        return None
+    ends = _outermost_lit(lit)
+    leaves = _leaves(ends, sw, sh)
     ends = ends[~leaves]
     if len(ends) < MIN_RIM_RAYS * CIRCLE_RAYS:
         return None
@@ -125,6 +132,22 @@ def _outermost_lit(lit: np.ndarray) -> np.ndarray:
     last[np.diff(np.r_[starts, len(on)]) == 0] = -1   # a ray no pixel lies in (a frame of a few pixels)
     last = last[last >= 0]
     return np.column_stack([xx[last], yy[last]]).astype(np.float64)
+
+
+def _leaves(ends: np.ndarray, w: int, h: int) -> np.ndarray:
+    """(n,) bool: ray ends (n, 2) x, y within a px of the border of a frame w × h."""
+    return (ends[:, 0] <= 1) | (ends[:, 1] <= 1) | (ends[:, 0] >= w - 2) | (ends[:, 1] >= h - 2)
+
+
+@functools.lru_cache(maxsize=4)
+def _ray_ends(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """For a frame of ``shape``: the flat index of each ray's farthest pixel (rays holding one),
+    and whether it lies within a px of the border (where a ray that ends there leaves)."""
+    order, starts, xx, yy = _rays_of(shape)
+    sizes = np.diff(np.r_[starts, len(order)])
+    last = (starts + sizes - 1)[sizes > 0]
+    ends = np.column_stack([xx[last], yy[last]])
+    return order[last], _leaves(ends, shape[1], shape[0])
 
 
 @functools.lru_cache(maxsize=4)

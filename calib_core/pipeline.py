@@ -70,11 +70,14 @@ def robust_outliers(res: np.ndarray, threshold: float) -> np.ndarray:
     return np.any(np.abs(res) > limit, axis=1)
 
 
+OUTLIER_SIGMA = 5.0  # the default: residuals beyond 5 robust sigmas are outliers
+
+
 def calibrate(
     observations: Observations,
     method: str = "auto",
     progress: Progress | None = None,
-    outlier_sigma: float = 5.0,
+    outlier_sigma: float = OUTLIER_SIGMA,
     **settings: Any,
 ) -> Calibration:
     """Calibrate with ``method`` (see ``methods.METHODS``); ``settings`` are the

@@ -9,6 +9,7 @@ from calib_core import Calibration, Observations, calibrate
 from calib_core.detection.detect import IMAGE_SUFFIXES
 from calib_core.errors import SettingsError
 from calib_core.fit_report import ChoiceReport
+from calib_core.pipeline import OUTLIER_SIGMA
 
 from .detect import BOARD_HELP, TARGET_HELP, detect_with_report
 from .inputs import STDIN, load_observations
@@ -85,7 +86,7 @@ def register(sub) -> None:
     p.add_argument("--report", metavar="DIR",
                    help="write the report the results page shows into DIR: residual tables (JSON, CSV), heatmap, "
                         "distortion field, knot grid, projection uncertainty, and their figures (PNG)")
-    p.add_argument("--outlier-sigma", type=float, default=5.0,
+    p.add_argument("--outlier-sigma", type=float, default=OUTLIER_SIGMA,
                    help="reject residuals beyond this many robust sigmas (0: keep all)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="any other method setting, e.g. --set lambda_smooth=0.5")

@@ -4,6 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from calib_core.errors import SettingsError
+from calib_core.pipeline import OUTLIER_SIGMA
 from calib_core.rig import calibrate_rig, evaluate_rig
 
 from .calibrate import set_settings
@@ -31,7 +32,7 @@ def register(sub) -> None:
                    help="keep each camera's model as calibrated alone (OpenCV's stereoCalibrate with "
                         "CALIB_FIX_INTRINSIC); by default the rig's fit refines them with the poses")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a method setting, as for calibrate")
-    p.add_argument("--outlier-sigma", type=float, default=5.0,
+    p.add_argument("--outlier-sigma", type=float, default=OUTLIER_SIGMA,
                    help="reject residuals beyond this many robust sigmas in each camera's calibration (0: keep all)")
     p.add_argument("--holdout", nargs="+", metavar="CAMERA_TEST.json",
                    help="other views of the same cameras, one file per camera in the same order: the rig's errors on "

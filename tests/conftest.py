@@ -32,3 +32,18 @@ def shared_data(name: str) -> Path:
     if not path.is_dir():
         pytest.skip(f"real image set {name!r} not found at {path} (the shared data folder sits beside the checkout)")
     return path
+
+
+@pytest.fixture(scope="module")
+def stereo_pair_files(tmp_path_factory) -> list[Path]:
+    """Two simulated cameras' corners (frames 000-007, matched by the digits of the view names), saved as
+    left.json and right.json."""
+    from .core.test_rig import simulated_rig
+
+    root = tmp_path_factory.mktemp("pair")
+    paths = []
+    for name, obs in zip(("left", "right"), simulated_rig([range(0, 8), range(0, 8)], seed=3).values(), strict=True):
+        obs.save(root / f"{name}.json")
+        paths.append(root / f"{name}.json")
+    return paths
+

@@ -12,23 +12,11 @@ import urllib.parse
 
 import pytest
 
-from ..core.test_rig import simulated_rig
 from ..service.harness import wait_for
 from .conftest import page_service, screenshots, wait_until
 
 service = page_service("rig-page", FREECAL_VIEWER_PORT="0")
 shots = screenshots("rig-page")
-
-
-@pytest.fixture(scope="module")
-def pair(tmp_path_factory):
-    """Two cameras' corners (frames 000-007, matched by the digits of the view names), as left.json and right.json."""
-    root = tmp_path_factory.mktemp("pair")
-    paths = []
-    for name, obs in zip(("left", "right"), simulated_rig([range(0, 8), range(0, 8)], seed=3).values(), strict=True):
-        obs.save(root / f"{name}.json")
-        paths.append(root / f"{name}.json")
-    return paths
 
 
 def open_page(browser, service):
@@ -45,10 +33,10 @@ def rig_jobs(service) -> list[dict]:
 
 
 @pytest.mark.slow  # two uploads, their calibrations and the rig with its exports: about 20 s
-def test_a_stereo_pair_is_calibrated_from_the_rig_panel(browser, service, shots, pair):
+def test_a_stereo_pair_is_calibrated_from_the_rig_panel(browser, service, shots, stereo_pair_files):
     page, errors = open_page(browser, service)
     # each camera's corners uploaded as the page allows (with a quick calibration of its own)
-    for path in pair:
+    for path in stereo_pair_files:
         page.set_input_files("#files", str(path))
         page.select_option("#method", "zhang")
         page.click("#submit")
@@ -130,9 +118,9 @@ def test_a_stereo_pair_is_calibrated_from_the_rig_panel(browser, service, shots,
     assert not errors, errors
 
 
-def test_a_refused_rig_says_why_in_page_words_and_makes_no_job(browser, service, shots, pair):
+def test_a_refused_rig_says_why_in_page_words_and_makes_no_job(browser, service, shots, stereo_pair_files):
     ids = []
-    for path in pair:   # the sets straight through the API: this test is about the panel's refusal
+    for path in stereo_pair_files:   # the sets straight through the API: this test is about the panel's refusal
         r = service.client.post("/api/sets", files={"files": (path.name, path.read_text(), "application/json")})
         assert r.status_code == 201, r.text
         ids.append(r.json()["id"])

@@ -27,17 +27,6 @@ def service(tmp_path_factory):
     svc.stop()
 
 
-@pytest.fixture(scope="module")
-def pair(tmp_path_factory):
-    """Two cameras' corners (frames 000-007, matched by the digits of the view names), saved as files."""
-    root = tmp_path_factory.mktemp("pair")
-    paths = []
-    for name, obs in zip(("left", "right"), simulated_rig([range(0, 8), range(0, 8)], seed=3).values(), strict=True):
-        obs.save(root / f"{name}.json")
-        paths.append(root / f"{name}.json")
-    return paths
-
-
 def upload(service, path_or_doc, filename: str) -> str:
     text = path_or_doc.read_text() if hasattr(path_or_doc, "read_text") else json.dumps(path_or_doc)
     r = service.client.post("/api/sets", files={"files": (filename, text, "application/json")})
@@ -46,8 +35,8 @@ def upload(service, path_or_doc, filename: str) -> str:
 
 
 @pytest.fixture(scope="module")
-def pair_sets(service, pair):
-    return [upload(service, path, path.name) for path in pair]
+def pair_sets(service, stereo_pair_files):
+    return [upload(service, path, path.name) for path in stereo_pair_files]
 
 
 def without_timings(doc):
@@ -60,7 +49,7 @@ def without_timings(doc):
 
 
 @pytest.mark.slow  # the rig, then Kalibr's export fits a model per camera: about 10 s
-def test_a_rig_job_writes_what_freecal_rig_writes_and_its_exports_read_back(service, pair, pair_sets, tmp_path):
+def test_a_rig_job_writes_what_freecal_rig_writes_and_its_exports_read_back(service, stereo_pair_files, pair_sets, tmp_path):
     c = service.client
     r = c.post("/api/jobs", json={"kind": "rig", "set_ids": pair_sets, "method": "zhang"})
     assert r.status_code == 201, r.text
@@ -96,7 +85,7 @@ def test_a_rig_job_writes_what_freecal_rig_writes_and_its_exports_read_back(serv
     assert r.status_code == 200 and r.headers["content-type"].startswith("application/json")
     assert f'filename="freecal-job-{job["id"]}-rig.json"' in r.headers["content-disposition"]
     cli_rig = tmp_path / "rig.json"
-    assert main(["rig", *map(str, pair), "--method", "zhang", "-o", str(cli_rig), "-q"]) == 0
+    assert main(["rig", *map(str, stereo_pair_files), "--method", "zhang", "-o", str(cli_rig), "-q"]) == 0
     assert without_timings(r.json()) == without_timings(json.loads(cli_rig.read_text()))
     rig = Rig.from_json(r.json())
 
@@ -133,7 +122,7 @@ def test_a_rig_job_writes_what_freecal_rig_writes_and_its_exports_read_back(serv
     assert r.status_code == 404 and "rig.json" in r.json()["detail"]
 
 
-def test_rig_requests_are_refused_up_front_saying_what_to_do(service, pair, pair_sets):
+def test_rig_requests_are_refused_up_front_saying_what_to_do(service, stereo_pair_files, pair_sets):
     c = service.client
     left, right = pair_sets
     apart = upload(service, simulated_rig([range(0, 8), range(8, 16)], seed=3)["cam1"].to_json(), "far.json")

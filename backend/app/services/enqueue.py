@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from ...base.context import Context
+from ...base.repository import jobs
 from ...queue.tasks import Queue, QueueUnavailable
 from ..errors import ApiError
 
@@ -16,6 +17,15 @@ def enqueue_or_undo(ctx: Context, queue: Queue, job_id: str, undo: Callable[[], 
     except QueueUnavailable as exc:
         undo()
         raise unavailable(ctx, exc) from None
+
+
+def enqueue_job(ctx: Context, queue: Queue, job_id: str) -> None:
+    """Enqueue a job just created; if the queue cannot take it, the job and its folder go again (503)."""
+    def undo() -> None:
+        jobs.delete(ctx.db, job_id)
+        ctx.storage.remove_job(job_id)
+
+    enqueue_or_undo(ctx, queue, job_id, undo)
 
 
 def unavailable(ctx: Context, exc: Exception) -> ApiError:

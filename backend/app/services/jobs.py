@@ -20,7 +20,7 @@ from ..errors import ApiError, not_found
 from ..schemas import JobCreate
 from . import exclusion
 from . import sets as set_service
-from .enqueue import enqueue_or_undo
+from .enqueue import enqueue_job
 from .ids import new_id
 
 COMPARE = "compare"
@@ -102,12 +102,7 @@ def create(ctx: Context, queue: Queue, body: JobCreate) -> str:
         exclude = exclusion.check(ctx, body.exclude, row, None)
     settings = {**body.settings, jobs.EXCLUDE_KEY: exclude} if exclude else body.settings
     jobs.create(ctx.db, job_id, "calibrate", body.set_id, body.method, settings, stage)
-
-    def undo() -> None:
-        jobs.delete(ctx.db, job_id)
-        ctx.storage.remove_job(job_id)
-
-    enqueue_or_undo(ctx, queue, job_id, undo)
+    enqueue_job(ctx, queue, job_id)
     return job_id
 
 

@@ -25,7 +25,7 @@ from ..errors import ApiError
 from ..schemas import CAMERA_NAME, RigJobCreate
 from . import jobs as job_service
 from . import sets as set_service
-from .enqueue import enqueue_or_undo
+from .enqueue import enqueue_job
 from .ids import new_id
 
 FRAMES_HOW = ("views of different cameras are matched by frame: a view's \"frame\" in the observations, else the "
@@ -71,12 +71,7 @@ def create(ctx: Context, queue: Queue, body: RigJobCreate) -> str:
     except BaseException:
         ctx.storage.remove_job(job_id)
         raise
-
-    def undo() -> None:
-        jobs.delete(ctx.db, job_id)
-        ctx.storage.remove_job(job_id)
-
-    enqueue_or_undo(ctx, queue, job_id, undo)
+    enqueue_job(ctx, queue, job_id)
     return job_id
 
 

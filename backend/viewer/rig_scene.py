@@ -26,7 +26,7 @@ import numpy as np
 from . import colormap
 from .boards import add_boards, board_points
 from .data import RigResult
-from .scene import AXIS_LENGTH, PLANE_DEPTH, Built, add_camera, overview
+from .scene import AXIS_LENGTH, PLANE_DEPTH, Built, add_camera, overview, scale_and_error_range
 
 FRUSTUM_SHARE = 0.6   # a frustum's depth, as a share of the distance to the nearest other camera
 
@@ -47,12 +47,7 @@ def build_rig_scene(scene: Any, result: RigResult) -> Built:
     """Draw the rig ``result`` into ``scene`` (``client.scene``), replacing what was there."""
     rig = result.rig
     built = Built(views=[b.name for b in result.boards])
-    depths = [float(np.linalg.norm(b.tvec)) for b in result.boards]
-    scale = 1.0 / (float(np.median(depths)) if depths and np.median(depths) > 0 else 1.0)
-    errors = np.concatenate([np.hypot(*b.residuals.T) for b in result.boards]) if result.boards else np.zeros(1)
-    finite = errors[np.isfinite(errors)]
-    vmax = float(np.percentile(finite, 95)) if finite.size else 1.0
-    vmax = vmax if vmax > 0 else 1.0
+    scale, vmax = scale_and_error_range(result.boards)
     centres = np.array([c.centre for c in rig.cameras]) * scale
     gaps = [float(np.linalg.norm(a - b)) for i, a in enumerate(centres) for b in centres[i + 1:]]
     nearest = min((g for g in gaps if g > 1e-9), default=PLANE_DEPTH)

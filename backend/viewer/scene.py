@@ -59,6 +59,17 @@ class Built:
         return sorted(self.handles)
 
 
+def scale_and_error_range(boards) -> tuple[float, float]:
+    """The scene's scale (the boards' median distance is one unit) and the corner error (px) the colours
+    top out at (the 95th percentile)."""
+    depths = [float(np.linalg.norm(b.tvec)) for b in boards]
+    scale = 1.0 / (float(np.median(depths)) if depths and np.median(depths) > 0 else 1.0)
+    errors = np.concatenate([np.hypot(*b.residuals.T) for b in boards]) if boards else np.zeros(1)
+    finite = errors[np.isfinite(errors)]
+    vmax = float(np.percentile(finite, 95)) if finite.size else 1.0
+    return scale, vmax if vmax > 0 else 1.0
+
+
 def build_scene(scene: Any, result: JobResult, component: str = COMPONENTS[0]) -> Built:
     """Draw ``result`` into ``scene`` (``server.scene`` or ``client.scene``), replacing what was there.
 
@@ -66,12 +77,7 @@ def build_scene(scene: Any, result: JobResult, component: str = COMPONENTS[0]) -
     """
     built = Built(views=[b.name for b in result.boards])
     cal = result.calibration
-    depths = [float(np.linalg.norm(b.tvec)) for b in result.boards]
-    scale = 1.0 / (float(np.median(depths)) if depths and np.median(depths) > 0 else 1.0)
-    errors = np.concatenate([np.hypot(*b.residuals.T) for b in result.boards]) if result.boards else np.zeros(1)
-    finite = errors[np.isfinite(errors)]
-    vmax = float(np.percentile(finite, 95)) if finite.size else 1.0
-    vmax = vmax if vmax > 0 else 1.0
+    scale, vmax = scale_and_error_range(result.boards)
     built.legend.update(error_max_px=vmax, scene_unit=1.0 / scale)
     points = np.concatenate([board_points(b, scale) for b in result.boards]) if result.boards else np.zeros((0, 3))
     # the image plane stays nearer than every corner, so nothing drawn on it passes through a board

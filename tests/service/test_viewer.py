@@ -18,14 +18,6 @@ QUICK = {"knots": "uniform", "intervals": [4, 4], "max_iterations": 10, "lambda_
 
 
 @pytest.fixture(scope="module")
-def server():
-    viser = pytest.importorskip("viser")
-    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    yield srv
-    srv.stop()
-
-
-@pytest.fixture(scope="module")
 def obs():
     return synthetic("radial").train
 

@@ -23,14 +23,6 @@ NAMES = ["left", "right"]
 
 
 @pytest.fixture(scope="module")
-def server():
-    viser = pytest.importorskip("viser")
-    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    yield srv
-    srv.stop()
-
-
-@pytest.fixture(scope="module")
 def cameras():
     sim = simulated_rig([range(0, 6), range(0, 6)], seed=1)
     return dict(zip(NAMES, sim.values(), strict=True))

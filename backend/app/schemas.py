@@ -195,3 +195,6 @@ class Health(BaseModel):
     jobs: dict[str, int] = Field(description="jobs by state")
     queue_available: bool = Field(True, description="whether the queue takes jobs now (Redis reachable)")
     queue_error: str | None = Field(None, description="why not, when it does not")
+    max_files: int = Field(500, description="images per set (FREECAL_MAX_FILES): the page holds at most this many "
+                                           "camera shots")
+    max_upload_bytes: int = Field(1024 * 1024 * 1024, description="bytes per upload (FREECAL_MAX_UPLOAD_BYTES)")

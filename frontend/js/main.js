@@ -2,6 +2,7 @@
 // keeps the lists, the progress bars and the selected items current.
 import { api } from "./api.js";
 import { initBoard } from "./board.js";
+import { initCapture } from "./capture.js";
 import { clearError, showError } from "./errors.js";
 import { initHelp } from "./help.js";
 import { renderJob, renderJobs } from "./jobs.js";
@@ -16,9 +17,10 @@ import { NO_FILES } from "./words.js";
 const POLL_MS = 1000;
 const state = { setId: null, jobId: null, shownJob: null, sets: [] };
 
+// true once the set and its job are created (the capture card then lets its shots go)
 async function submit({ form, method, settings }) {
   clearError();
-  if (!form.getAll("files").length) { showError(new Error(NO_FILES)); return; }
+  if (!form.getAll("files").length) { showError(new Error(NO_FILES)); return false; }
   try {
     const set = await api.createSet(form);
     selectSet(set.id);
@@ -26,7 +28,8 @@ async function submit({ form, method, settings }) {
     const job = await api.createJob({ set_id: set.id, method, settings });
     state.scrollTo = job.id;   // the user asked for this one: show its results when they come
     selectJob(job.id);
-  } catch (e) { showError(e); }
+    return true;
+  } catch (e) { showError(e); return false; }
 }
 
 // curation (re-run without some views) and the board-size suggestion create jobs too: show them
@@ -89,6 +92,7 @@ async function init() {
   initBoard();
   initHelp();
   initUpload(submit);
+  initCapture(submit);
   try {
     const methods = await api.methods();
     initMethods(methods);

@@ -26,14 +26,20 @@ export function initUpload(onSubmit) {
   });
   document.getElementById("upload-form").addEventListener("submit", async (e) => {
     e.preventDefault();
-    const form = new FormData();
-    for (const f of chosen) form.append("files", f, f.name);
-    form.append("board", boardSpec());
-    const name = document.getElementById("set-name").value.trim();
-    if (name) form.append("name", name);
     const button = document.getElementById("submit");
     button.disabled = true;
-    try { await onSubmit({ form, ...chosenSettings() }); }
+    try { await onSubmit(uploadRequest(chosen)); }
     finally { button.disabled = false; }
   });
+}
+
+/** What the upload sends for ``files`` (Files or named Blobs): them, the board, the set name, the method and
+ * its settings. Dropped photos and camera shots (capture.js) go up through this one path. */
+export function uploadRequest(files) {
+  const form = new FormData();
+  for (const f of files) form.append("files", f, f.name);
+  form.append("board", boardSpec());
+  const name = document.getElementById("set-name").value.trim();
+  if (name) form.append("name", name);
+  return { form, ...chosenSettings() };
 }

@@ -32,3 +32,33 @@ export function pageWords(message) {
   const f = LEADING_FIELD.exec(message || "");
   return f ? `${capitalise(FIELDS[f[1]])}: ${f[2].replace(SET_ID, "")}` : message;
 }
+
+// The capture card's camera problems (capture.js), by the DOMException's name getUserMedia rejects with:
+// what happened and what to do, uploading photos always being the way around.
+const OR_UPLOAD = "or upload photos instead (the box above).";
+export const CAMERA = {
+  insecure: (origin, port) => `The browser lets only secure pages use a camera, and ${origin} is not one: open ` +
+    `the page as http://localhost:${port}/ on the computer that runs freecal, or over https; ${OR_UPLOAD}`,
+  unsupported: `This browser cannot give a page a camera: try a recent Chrome, Edge, Firefox or Safari; ${OR_UPLOAD}`,
+  refused: "The camera was refused: allow it for this page (the camera icon in the address bar, or the " +
+    `browser's site settings), then press Start camera again; ${OR_UPLOAD}`,
+  absent: `No camera was found: plug one in, then press Start camera again; ${OR_UPLOAD}`,
+  busy: "The camera could not be started: another program or tab may be using it. Close that one, then press " +
+    `Start camera again; ${OR_UPLOAD}`,
+  other: (what) => `The camera did not start (${what}): press Start camera again; ${OR_UPLOAD}`,
+  ended: "The camera stopped (unplugged, or taken by another program): press Start camera again. The photos " +
+    "taken so far are kept.",
+  full: (n) => `${n} photos is the most one set takes (the server's limit): send these with Use these photos, ` +
+    "or remove some first.",
+  heavy: (mb) => `These photos are ${mb} MB, the most one upload takes (the server's limit): send them with ` +
+    "Use these photos, or remove some first.",
+};
+
+/** getUserMedia's refusal ``err`` in page words. */
+export function cameraProblem(err) {
+  const name = (err && err.name) || "";
+  if (["NotAllowedError", "SecurityError", "PermissionDeniedError"].includes(name)) return CAMERA.refused;
+  if (["NotFoundError", "DevicesNotFoundError", "OverconstrainedError"].includes(name)) return CAMERA.absent;
+  if (["NotReadableError", "TrackStartError", "AbortError"].includes(name)) return CAMERA.busy;
+  return CAMERA.other((err && err.message) || String(err));
+}

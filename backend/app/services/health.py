@@ -38,7 +38,8 @@ def assess(ctx: Context, queue: Queue) -> Health:
     return Health(status="degraded" if problems else "ok", problems=problems, version=VERSION, queue=s.queue,
                   workers=len(live), workers_expected=s.workers, jobs=counts, storage_writable=storage_problem is None,
                   queue_available=queue_problem is None,
-                  queue_error=None if queue_problem is None else queue_error(ctx, queue_problem))
+                  queue_error=None if queue_problem is None else queue_error(ctx, queue_problem),
+                  max_files=s.max_files, max_upload_bytes=s.max_upload_bytes)
 
 
 def queue_error(ctx: Context, problem: str) -> str:

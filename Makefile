@@ -21,7 +21,9 @@ run: $(STAMP)
 test: $(STAMP) lint
 	@bash scripts/ensure-system-packages.sh
 	@bash scripts/ensure-mrcal.sh >/dev/null
-	$(PY) -m pytest
+	# the science's tests on both cores; the service's and the page's one at a time (they start servers
+	# and time a browser's walk); both always run, and the target fails if either did
+	$(PY) -m pytest -n 2 tests/core; core=$$?; $(PY) -m pytest tests/service tests/browser && exit $$core
 
 # The quick loop while editing: the science's tests under 5 s each (no server, no browser), on both cores.
 test-fast: $(STAMP)

@@ -54,3 +54,15 @@ def wait_until(page, expression: str, timeout: float) -> None:
     """Poll a JS expression until true. Not page.wait_for_function: Playwright compiles its predicate
     with eval inside the page, which the page's Content-Security-Policy (rightly) forbids."""
     wait_for(lambda: page.evaluate(expression), timeout / 1000, expression, every=0.2)
+
+
+def open_page(browser, service, ready: str = "#method option[value=auto]", viewport: dict | None = None,
+              **options) -> tuple:
+    """The page in a new tab, once ``ready`` (a selector) is there, and the list its script errors go to."""
+    page = browser.new_page(viewport=viewport or {"width": 1366, "height": 768}, **options)
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(f"http://127.0.0.1:{service.port}/")
+    page.wait_for_selector(ready, state="attached")
+    return page, errors
+

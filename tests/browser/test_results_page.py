@@ -16,7 +16,7 @@ import time
 import pytest
 
 from ..conftest import ROOT, shared_data
-from .conftest import page_service, screenshots, wait_until
+from .conftest import open_page, page_service, screenshots, wait_until
 from .test_page import fill_settings
 
 pytestmark = pytest.mark.slow
@@ -28,15 +28,6 @@ HEX_ID = re.compile(r"\b[0-9a-f]{12,}\b")
 
 service = page_service("results-page", FREECAL_VIEWER="0")
 shots = screenshots("results-page")
-
-
-def open_page(browser, service, viewport):
-    page = browser.new_page(viewport=viewport, accept_downloads=True)
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.goto(f"http://127.0.0.1:{service.port}/")
-    page.wait_for_selector("#method option[value=auto]", state="attached")
-    return page, errors
 
 
 def upload(page, files, board: tuple[int, int, float], method: str = "auto", settings: dict | None = None) -> None:
@@ -112,7 +103,7 @@ def assert_fits_the_screen(page, what: str) -> None:
 
 def test_gopro_camera_card_distortion_as_angles_words_and_progress(browser, service, shots):
     images = sorted(shared_data("gopro-hero3-wide-15x9").glob("*.JPG"))
-    page, errors = open_page(browser, service, DESKTOP)
+    page, errors = open_page(browser, service, viewport=DESKTOP, accept_downloads=True)
     # a favicon, served
     icon = page.get_attribute("link[rel=icon]", "href")
     assert page.request.get(page.url + icon).headers["content-type"].startswith("image/svg")
@@ -180,7 +171,7 @@ def test_gopro_camera_card_distortion_as_angles_words_and_progress(browser, serv
 def test_babelcalib_on_a_phone_field_over_its_core_and_no_overflow(browser, service, shots):
     root = shared_data("babelcalib-ov-plane-fisheye")
     images = sorted((root / "train").glob("*.png"))
-    page, errors = open_page(browser, service, PHONE)
+    page, errors = open_page(browser, service, viewport=PHONE, accept_downloads=True)
     assert_fits_the_screen(page, "the upload form")
     page.screenshot(path=shots / "05-phone-upload.png", full_page=True)
     watch_progress(page)
@@ -210,7 +201,7 @@ def test_rendered_set_and_opencv_stereo_field_table_and_verdict_advice(browser, 
     # a rendered set (freecal synth --images): the paper's field, with its knot grid and smoothing table
     subprocess.run([sys.executable, "-m", "backend.cli", "synth", "--kind", "radial", "--views", "6", "--images",
                     "-o", str(tmp_path / "synth")], cwd=ROOT, check=True, capture_output=True)
-    page, errors = open_page(browser, service, DESKTOP)
+    page, errors = open_page(browser, service, viewport=DESKTOP, accept_downloads=True)
     upload(page, sorted((tmp_path / "synth" / "images").glob("*.png")), (22, 22, 50), "bspline",
            {"knots": "uniform", "intervals": "4x4", "max_iterations": "30"})
     doc = results(page, 300_000)

@@ -13,19 +13,10 @@ import urllib.parse
 import pytest
 
 from ..service.harness import wait_for
-from .conftest import page_service, screenshots, wait_until
+from .conftest import open_page, page_service, screenshots, wait_until
 
 service = page_service("rig-page", FREECAL_VIEWER_PORT="0")
 shots = screenshots("rig-page")
-
-
-def open_page(browser, service):
-    page = browser.new_page(viewport={"width": 1366, "height": 768})
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.goto(f"http://127.0.0.1:{service.port}/")
-    page.wait_for_selector("#rig-method option[value=zhang]", state="attached")
-    return page, errors
 
 
 def rig_jobs(service) -> list[dict]:
@@ -34,7 +25,7 @@ def rig_jobs(service) -> list[dict]:
 
 @pytest.mark.slow  # two uploads, their calibrations and the rig with its exports: about 20 s
 def test_a_stereo_pair_is_calibrated_from_the_rig_panel(browser, service, shots, stereo_pair_files):
-    page, errors = open_page(browser, service)
+    page, errors = open_page(browser, service, "#rig-method option[value=zhang]")
     # each camera's corners uploaded as the page allows (with a quick calibration of its own)
     for path in stereo_pair_files:
         page.set_input_files("#files", str(path))
@@ -125,7 +116,7 @@ def test_a_refused_rig_says_why_in_page_words_and_makes_no_job(browser, service,
         assert r.status_code == 201, r.text
         ids.append(r.json()["id"])
     before = len(rig_jobs(service))
-    page, errors = open_page(browser, service)
+    page, errors = open_page(browser, service, "#rig-method option[value=zhang]")
     for set_id in ids:
         page.wait_for_selector(f"#rig-use-{set_id}", timeout=10_000)
         page.check(f"#rig-use-{set_id}")

@@ -16,7 +16,7 @@ import cv2
 import pytest
 
 from ..conftest import shared_data
-from .conftest import page_service, screenshots, wait_until
+from .conftest import open_page, page_service, screenshots, wait_until
 
 pytestmark = pytest.mark.slow
 
@@ -37,15 +37,6 @@ def jpeg(path, sigma: float | None) -> bytes:
     ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 95])
     assert ok
     return buf.tobytes()
-
-
-def open_page(browser, service):
-    page = browser.new_page(viewport={"width": 1366, "height": 900})
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.goto(f"http://127.0.0.1:{service.port}/")
-    page.wait_for_selector("#method option[value=auto]", state="attached")
-    return page, errors
 
 
 def submit(page, files, board: tuple[int, int, float], method: str) -> None:
@@ -72,7 +63,7 @@ def test_thumbnails_corners_enlarged_view_names_and_sharpness(browser, service, 
     photos = sorted(shared_data("gopro-hero3-wide-15x9").glob("*.JPG"))[:4]
     files = [{"name": n, "mimeType": "image/jpeg", "buffer": jpeg(p, BLUR.get(k))}
              for k, (n, p) in enumerate(zip(NAMES, photos, strict=True))]
-    page, errors = open_page(browser, service)
+    page, errors = open_page(browser, service, viewport={"width": 1366, "height": 900})
     submit(page, files, (15, 9, 26), "zhang")
     wait_until(page, "document.querySelector('#set-progress-label').textContent.startsWith('ready')", 180_000)
     wait_until(page, "document.querySelectorAll('#images li[data-corners]').length >= 3", 30_000)
@@ -144,7 +135,7 @@ def test_thumbnails_corners_enlarged_view_names_and_sharpness(browser, service, 
 
 def test_fisheye_coverage_advice_stays_inside_the_image_circle(browser, service, shots):  # noqa: F811
     photos = sorted((shared_data("babelcalib-ov-plane-fisheye") / "train").glob("*.png"))[:3]
-    page, errors = open_page(browser, service)
+    page, errors = open_page(browser, service, viewport={"width": 1366, "height": 900})
     submit(page, [str(p) for p in photos], (22, 22, 7.5), "fisheye")
     wait_until(page, "document.querySelector('#set-progress-label').textContent.startsWith('ready')", 240_000)
     s = shown_set(page)

@@ -48,6 +48,14 @@ def webcam_lens(pc):
     return cv2.projectPoints(pc, np.zeros(3), np.zeros(3), k, d)[0].reshape(-1, 2)
 
 
+def rippled_lens(pc):
+    """The webcam lens and a smooth ripple of about a pixel that no parametric model has (a moulded element's)."""
+    pixels = webcam_lens(pc)
+    x, y = pixels[:, 0] / 640, pixels[:, 1] / 480
+    return pixels + np.column_stack([1.2 * np.sin(2 * np.pi * x) * np.cos(np.pi * y),
+                                     0.9 * np.cos(2 * np.pi * x + 0.5) * np.sin(np.pi * y)])
+
+
 def beyond_180(pc):
     """A Kannala-Brandt lens of ~200° on 1280 x 1024 (θ from the optical axis, any sign of Z)."""
     k, d = (300.0, 301.0, 641.0, 509.0), (0.01, -0.005, 0.001, -0.0002)

@@ -32,7 +32,7 @@ from ..fitting.choice import Candidate, ModelChoice, choose
 from ..fitting.crossval import linearised_view_errors
 from ..fitting.init import initialise
 from ..fitting.solve import Data, spread_views
-from .bspline import BSplineSettings, fit_core, fit_field, ideal_samples
+from .bspline import BSplineSettings, FieldScreen, field_screen, fit_core, fit_field, ideal_samples
 from .common import Fit, Progress, named, no_progress, scaled
 
 
@@ -73,11 +73,15 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
     sample = data if data.n_views <= s.decision_views else spread_views(data, s.decision_views)
     initialise(sample, image_size)  # cached, before the candidates share it from two threads
     share = 1.0 if sample is data else 0.6
-    fits, why_not = _fit_candidates(specs, sample, image_size, scaled(progress, 0.0, 0.8 * share))
+    fits, why_not, screen = _fit_candidates(specs, sample, image_size, scaled(progress, 0.0, 0.8 * share))
     if all(f is None for f in fits):
         raise DataError("no model fits these corners: " + "; ".join(dict.fromkeys(e for e in why_not if e)))
     progress("model choice", 0.8 * share)
     choice = _validate(specs, fits, why_not, sample)
+    if screen is not None:
+        choice.how += (f"; fields were fitted only if one over the {screen.core} model predicted the views left out "
+                       f"of it better than no field (it did{'' if screen.pays else ' not'}: "
+                       f"{screen.gain:.2g} ± {screen.standard_error:.2g} px² per corner)")
     if wide:
         choice.how += f"; {int((~seen).sum())} corners lie past the pinhole's reach, so only models that reach them ran"
     if sample is not data:
@@ -108,33 +112,62 @@ def _fit_spec(spec: Spec, data: Data, image_size, cores: dict[str, Fit | None], 
 
 
 def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
-    """Each candidate's fit (None if it cannot fit these corners) and why
-    not. A candidate with no parametric core (the paper's field) depends on
-    no other: it runs on the second core meanwhile (the heavy parts, the
-    compiled kernels and LAPACK, release the GIL), reporting no progress of
-    its own."""
+    """Each candidate's fit (None if it cannot fit these corners, or if no
+    field pays), why not, and the field screen (None when not run).
+    The parametric models fit first. A field is fitted only where one over
+    the most flexible core predicts the views left out of it better than no
+    field (``field_screen``): on a lens its parametric models represent, the
+    fields cost most of the choice and win nothing. Of the fields, the one
+    with no parametric core (the paper's) depends on no other: it runs on
+    the second core meanwhile (the heavy parts, the compiled kernels and
+    LAPACK, release the GIL), reporting no progress of its own."""
     why_not = [""] * len(specs)
     cores: dict[str, Fit | None] = {}
     fits: list[Fit | None] = [None] * len(specs)
-    alone = [i for i, spec in enumerate(specs) if spec.core is None]
+
+    def part(i: int) -> Progress:
+        return named(scaled(progress, i / len(specs), (i + 1) / len(specs)), specs[i].label)
+
+    for i, spec in enumerate(specs):
+        if spec.field is None:
+            cores[spec.core] = fits[i] = _try(why_not, i, fit_core, sample, image_size, spec.core, part(i),
+                                              cores.get("zhang"))
+    fields = [i for i, spec in enumerate(specs) if spec.field is not None]
+    progress("whether a field pays", min(fields, default=len(specs)) / len(specs))
+    screen = _screen(specs, cores, sample, image_size)
+    if screen is not None and not screen.pays:
+        for i in fields:
+            why_not[i] = (f"not fitted: a field over the {screen.core} model predicts the views left out of it no "
+                          f"better than no field ({screen.gain:.2g} ± {screen.standard_error:.2g} px² per corner)")
+        return fits, why_not, screen
+    alone = [i for i in fields if specs[i].core is None]
     with ThreadPoolExecutor(max_workers=1) as pool:
         background = {i: pool.submit(_try, why_not, i, _fit_spec, specs[i], sample, image_size, {}, no_progress)
                       for i in alone}
-        for i, spec in enumerate(specs):
+        for i in fields:
             if i in background:
                 continue
-            part = named(scaled(progress, i / len(specs), (i + 1) / len(specs)), spec.label)
-            if spec.core not in cores:
-                cores[spec.core] = _try(why_not, i, fit_core, sample, image_size, spec.core, part, cores.get("zhang"))
-            if cores[spec.core] is None:
-                why_not[i] = why_not[i] or f"its {spec.core} core cannot fit these corners"
+            if cores.get(specs[i].core) is None:
+                why_not[i] = why_not[i] or f"its {specs[i].core} core cannot fit these corners"
                 continue
-            fits[i] = _try(why_not, i, _fit_spec, spec, sample, image_size, cores, part)
+            fits[i] = _try(why_not, i, _fit_spec, specs[i], sample, image_size, cores, part(i))
         for i, future in background.items():
             if not future.done():
                 progress(f"{specs[i].label}: finishing (fitted alongside the others)", 1.0)
             fits[i] = future.result()
-    return fits, why_not
+    return fits, why_not, screen
+
+
+def _screen(specs, cores: dict[str, Fit | None], sample: Data, image_size) -> FieldScreen | None:
+    """The field screen over the core of the last field-over-core candidate
+    (the most flexible core), or None when that core did not fit."""
+    core = next((spec.core for spec in reversed(specs) if spec.field is not None and spec.core), None)
+    if core is None or cores.get(core) is None:
+        return None
+    try:
+        return field_screen(sample, image_size, core, cores[core])
+    except (DataError, np.linalg.LinAlgError):  # too few corners for the grid: let the fields say so
+        return None
 
 
 def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -> ModelChoice:

@@ -48,7 +48,7 @@ from ..models.base import CameraModel
 from ..models.bspline import GAUGE_WEIGHT, BSplineModel, gauge_rows
 from ..models.bspline_basis import BSplineField, clamped_knots
 from ..models.hybrid import HybridModel
-from .common import Fit, Progress
+from .common import Fit, Progress, no_progress
 from .fisheye import FisheyeSettings, fit_fisheye
 from .opencv import OpenCVSettings, RationalSettings, fit_opencv
 
@@ -296,6 +296,50 @@ def core_field_problem(data: Data, image_size, s: BSplineSettings, core: str, pr
     domain = _padded_box(np.vstack([_border(image_size), fitted.project(pc)]))
     problem = FieldProblem(domain, _border(image_size), gauge_point, lambda field: np.zeros((field.n_u, field.n_v, 2)), samples, make)
     return problem, fitted, fit.result.poses, ok, fit.excluded_reason
+
+
+SCREEN_INTERVALS = (10, 10)
+
+
+@dataclass
+class FieldScreen:
+    """Whether a field predicts what a parametric core leaves: the field over
+    the core's fitted camera and poses, its λ chosen by the views left out
+    (``_field_cv``), against no field on the same left-out views. ``gain``:
+    the mean squared left-out residual per corner (px², both axes) the field
+    takes away, and one standard error of it over the views (paired, as
+    ``choice.choose`` pairs candidates)."""
+
+    core: str
+    gain: float
+    standard_error: float
+    lambda_smooth: float
+
+    @property
+    def pays(self) -> bool:
+        # Any gain, not one beyond the noise: held at the core's camera, which
+        # the joint fit frees, the field shows only part of what it wins
+        # (docs/model-choice.md). On residuals that are noise alone the
+        # smoothing's own cost keeps the gain below zero.
+        return self.gain > 0
+
+
+def field_screen(data: Data, image_size, core: str, core_fit: Fit) -> FieldScreen:
+    """A field over ``core_fit`` on a 10 × 10 grid, scored on the views left
+    out of its control points' fit at the core's camera: the first stage of
+    the field-over-core candidate, at the cost of one λ curve."""
+    s = BSplineSettings(core=core)
+    problem, start, poses, ok, _ = core_field_problem(data, image_size, s, core, no_progress, core_fit)
+    samples, response, views = problem.samples(start, poses, data.points(ok))
+    weights = sample_weights(samples, response, s)
+    breaks = knots.breaks_for(samples, weights, problem.domain, s.knot_settings(SCREEN_INTERVALS), problem.footprint)
+    field = BSplineField.zeros(clamped_knots(breaks[0]), clamped_knots(breaks[1]))
+    cv = _field_cv(problem, field, samples, response, weights, views, s.lambda_reg, LAMBDA_GRID, refine=True)
+    none = np.bincount(groups_of(views), weights=np.sum(response**2, axis=1))  # a core's field's prior is zero
+    n = len(none)
+    gain = (none - cv.group_sse[:, cv.best]) * n / cv.counts.sum()  # its mean is the gain per corner
+    se = float(np.std(gain, ddof=1) / np.sqrt(n)) if n > 1 else np.inf
+    return FieldScreen(core, float(gain.mean()), se, float(cv.lambdas[cv.best]))
 
 
 # ---- shared steps ---------------------------------------------------------------------

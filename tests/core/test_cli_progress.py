@@ -24,7 +24,7 @@ def corners(tmp_path_factory):
     from ..conftest import synthetic
 
     path = tmp_path_factory.mktemp("progress") / "train.json"
-    synthetic("radial").train.save(path)
+    synthetic("asymmetric").train.save(path)  # a lens that needs a field: every candidate runs
     return str(path)
 
 

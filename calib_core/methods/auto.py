@@ -162,10 +162,11 @@ def _screen(specs, cores: dict[str, Fit | None], sample: Data, image_size) -> Fi
     """The field screen over the core of the last field-over-core candidate
     (the most flexible core), or None when that core did not fit."""
     core = next((spec.core for spec in reversed(specs) if spec.field is not None and spec.core), None)
-    if core is None or cores.get(core) is None:
+    core_fit = None if core is None else cores.get(core)
+    if core is None or core_fit is None:
         return None
     try:
-        return field_screen(sample, image_size, core, cores[core])
+        return field_screen(sample, image_size, core, core_fit)
     except (DataError, np.linalg.LinAlgError):  # too few corners for the grid: let the fields say so
         return None
 

@@ -48,12 +48,12 @@ def webcam_lens(pc):
     return cv2.projectPoints(pc, np.zeros(3), np.zeros(3), k, d)[0].reshape(-1, 2)
 
 
-def rippled_lens(pc):
-    """The webcam lens and a smooth ripple of about a pixel that no parametric model has (a moulded element's)."""
+def rippled_lens(pc, amplitude=1.2):
+    """The webcam lens and a smooth ripple of about ``amplitude`` pixels that no parametric model has (a moulded element's)."""
     pixels = webcam_lens(pc)
     x, y = pixels[:, 0] / 640, pixels[:, 1] / 480
-    return pixels + np.column_stack([1.2 * np.sin(2 * np.pi * x) * np.cos(np.pi * y),
-                                     0.9 * np.cos(2 * np.pi * x + 0.5) * np.sin(np.pi * y)])
+    return pixels + amplitude * np.column_stack([np.sin(2 * np.pi * x) * np.cos(np.pi * y),
+                                                 0.75 * np.cos(2 * np.pi * x + 0.5) * np.sin(np.pi * y)])
 
 
 def beyond_180(pc):

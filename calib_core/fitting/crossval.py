@@ -16,7 +16,13 @@ import scipy.linalg
 
 from ..models.base import CameraModel
 from .gram import gram
-from .solve import Data, SolveSettings, residuals_and_jacobian
+from .solve import Data, SolveSettings, levenberg_marquardt, residuals, residuals_and_jacobian, select_views
+
+# A view's closed form is trusted when the model moved by its step predicts
+# the view (poses answering linearly) within this share of the linear
+# prediction; beyond, the step has left the linear regime (a rational
+# model's denominators near a pole) and the view is refitted exactly.
+LINEAR_AGREEMENT = 0.2
 
 
 def folds(n_views: int, splits: int) -> list[np.ndarray]:
@@ -32,6 +38,7 @@ class ViewErrors:
 
     errors: np.ndarray
     steps: np.ndarray
+    refitted: int = 0  # views whose closed form left the linear regime, refitted exactly
 
 
 def linearised_view_errors(model: CameraModel, poses: np.ndarray, data: Data, scored: np.ndarray | None = None,
@@ -101,6 +108,8 @@ def linearised_view_errors(model: CameraModel, poses: np.ndarray, data: Data, sc
     errors = np.zeros(data.n_views)
     steps = np.zeros((data.n_views, n_model))
     ridge = 1e-12 * np.trace(s) / max(n_model, 1) * np.eye(n_model)
+    free_idx = np.arange(model.n_params) if free is None else np.flatnonzero(free)
+    refitted = 0
     for v, (span, a, at, b, nvv, share, held_part) in enumerate(parts):
         rv = r_view[span]
         rhs = at @ rv
@@ -112,7 +121,40 @@ def linearised_view_errors(model: CameraModel, poses: np.ndarray, data: Data, sc
             e += held_part[0] @ held_part[2]
         e -= b @ np.linalg.solve(nvv, b.T @ e)
         errors[v] = float(np.sum(e[weight[span]] ** 2))
-    return ViewErrors(errors, steps)
+        held_move = None if held_part is None else held_part[2]
+        moved = _moved(model, free_idx, steps[v], held_move)
+        view = select_views(data, np.array([v]))
+        e_moved = residuals(moved, poses[[v]], view).ravel()
+        e_moved -= b @ np.linalg.solve(nvv, b.T @ e_moved)
+        predicted = float(np.sum(e_moved[weight[span]] ** 2))
+        if not abs(predicted - errors[v]) <= LINEAR_AGREEMENT * max(errors[v], predicted):
+            errors[v], steps[v] = _refit_without(model, poses, data, v, free_idx, held_move, weight[span][::2])
+            refitted += 1
+    return ViewErrors(errors, steps, refitted)
+
+
+def _moved(model: CameraModel, free_idx: np.ndarray, step: np.ndarray, held_move: np.ndarray | None) -> CameraModel:
+    """The model with its free parameters moved by ``step`` and its held ones by ``held_move``."""
+    x = model.params().copy()
+    x[free_idx] += step
+    if held_move is not None:
+        x[np.setdiff1d(np.arange(model.n_params), free_idx)] += held_move
+    return model.with_params(x)
+
+
+def _refit_without(model: CameraModel, poses: np.ndarray, data: Data, v: int, free_idx: np.ndarray,
+                   held_move: np.ndarray | None, scored: np.ndarray) -> tuple[float, np.ndarray]:
+    """View v's squared error over its ``scored`` points when the model is
+    refitted without it from the full fit (held parameters moved by
+    ``held_move``), then held while the view's pose is refit; and the free
+    parameters' move."""
+    others = np.setdiff1d(np.arange(data.n_views), [v])
+    start = _moved(model, free_idx, np.zeros(len(free_idx)), held_move)
+    fit = levenberg_marquardt(start, poses[others], select_views(data, others),
+                              SolveSettings(200, 1e-10, gauss_newton_trials=True))
+    alone = levenberg_marquardt(fit.model, poses[[v]], select_views(data, np.array([v])),
+                                SolveSettings(100, fix_model=True))
+    return float(np.sum(alone.residuals[scored] ** 2)), fit.model.params()[free_idx] - model.params()[free_idx]
 
 
 def _spd_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:

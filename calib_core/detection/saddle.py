@@ -47,11 +47,15 @@ def _quadrant_points(pts: np.ndarray, e_col: np.ndarray, e_row: np.ndarray,
     return at.astype(np.float32).reshape(-1, 2)
 
 
+REMAP_ROWS = 32_000   # remap's maps must have fewer than 2^15 rows
+
+
 def _sampled(gray: np.ndarray, m: np.ndarray) -> np.ndarray:
     """(K,) float64 grey levels at points m (K, 2) float32, bilinear."""
     m = m.reshape(-1, 1, 2)
-    vals = cv2.remap(gray, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return vals.reshape(-1).astype(np.float64)
+    vals = [cv2.remap(gray, c[..., 0], c[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).reshape(-1)
+            for c in (m[k:k + REMAP_ROWS] for k in range(0, len(m), REMAP_ROWS))]
+    return np.concatenate(vals).astype(np.float64) if vals else np.zeros(0)
 
 
 def _quadrant_medians(vals: np.ndarray, n: int) -> np.ndarray:

@@ -146,10 +146,12 @@ def _saddle_iterate(smooth: np.ndarray, pts: np.ndarray, half: np.ndarray) -> tu
     lim = half_s.astype(np.float64)[:, None]
     coef = np.empty((6, n))
     taken = np.ones(n, bool)
+    mx, my = np.empty((n, dx.size), np.float32), np.empty((n, dx.size), np.float32)
     for _ in range(SADDLE_STEPS):
-        # x and y maps apart, (n, M) each: a broadcast over a last axis of 2 is ten times slower
-        mx = (p[:, :1] + dx).astype(np.float32)
-        my = (p[:, 1:] + dy).astype(np.float32)
+        # x and y maps apart, (n, M) each: a broadcast over a last axis of 2 is ten times slower;
+        # summed in float64 and rounded once into float32, in place (a float64 copy each cost as much)
+        np.add(p[:, :1], dx, out=mx, casting="unsafe")
+        np.add(p[:, 1:], dy, out=my, casting="unsafe")
         zt = cv2.remap(smooth, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).T.astype(np.float64)
         for fit, s0, s1 in zip(fits, starts, ends, strict=True):
             for c0 in range(s0, s1, BLAS_COLUMNS):

@@ -35,12 +35,31 @@ def quadrant_levels(gray: np.ndarray, pts: np.ndarray, e_col: np.ndarray, e_row:
     quadrants spanned by the local lattice steps e_col (to the next column) and e_row (to the
     next row), (N, 2) each: the median of three samples, so one tag bit or speck cannot flip it.
     reach (N,) scales the samples' distance (1: a fifth of a square along the diagonal)."""
+    return _quadrant_medians(_sampled(gray, _quadrant_points(pts, e_col, e_row, reach)), len(pts))
+
+
+def _quadrant_points(pts: np.ndarray, e_col: np.ndarray, e_row: np.ndarray,
+                     reach: np.ndarray | float = 1.0) -> np.ndarray:
+    """(N * 12, 2) float32: ``quadrant_levels``' sample points, corner by corner, quadrant by quadrant."""
     offs = (_SIGNS[:, None, :] * _QUARTER[None, :, :]).reshape(-1, 2)        # (12, 2)
     r = np.broadcast_to(np.asarray(reach, dtype=np.float64), (len(pts),))[:, None, None]
     at = pts[:, None, :] + r * (offs[None, :, :1] * e_col[:, None, :] + offs[None, :, 1:] * e_row[:, None, :])
-    m = at.astype(np.float32).reshape(-1, 1, 2)
-    vals = cv2.remap(gray, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return np.sort(vals.reshape(len(pts), 4, len(_QUARTER)).astype(np.float64), axis=2)[..., 1]  # the median of 3
+    return at.astype(np.float32).reshape(-1, 2)
+
+
+REMAP_ROWS = 32_000   # remap's maps must have fewer than 2^15 rows
+
+
+def _sampled(gray: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """(K,) float64 grey levels at points m (K, 2) float32, bilinear."""
+    m = m.reshape(-1, 1, 2)
+    vals = [cv2.remap(gray, c[..., 0], c[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).reshape(-1)
+            for c in (m[k:k + REMAP_ROWS] for k in range(0, len(m), REMAP_ROWS))]
+    return np.concatenate(vals).astype(np.float64) if vals else np.zeros(0)
+
+
+def _quadrant_medians(vals: np.ndarray, n: int) -> np.ndarray:
+    return np.sort(vals.reshape(n, 4, len(_QUARTER)), axis=2)[..., 1]  # the median of 3
 
 
 def is_corner(gray: np.ndarray, pts: np.ndarray, e_col: np.ndarray, e_row: np.ndarray, even: np.ndarray,
@@ -68,10 +87,16 @@ class CornerReading:
            half: np.ndarray) -> CornerReading:
         spacing = np.minimum(np.linalg.norm(e_col, axis=1), np.linalg.norm(e_row, axis=1))
         near = np.clip(0.6 * half / np.maximum(0.2 * spacing, 1e-9), 0.0, 1.0)
-        levels = quadrant_levels(gray, pts, e_col, e_row)
+        # the three readings' points in one remap: each point's level is its own, and a call
+        # with its conversions cost more than its sampling
+        n = len(pts)
+        vals = _sampled(gray, np.concatenate([_quadrant_points(pts, e_col, e_row),
+                                              _quadrant_points(pts, e_col, e_row, near),
+                                              _arm_points(pts, e_col, e_row)]))
+        levels, near_levels = _quadrant_medians(vals[:12 * n], n), _quadrant_medians(vals[12 * n:24 * n], n)
         contrast = np.abs(levels[:, [0, 3]].mean(1) - levels[:, [1, 2]].mean(1))
-        arms_ok = arm_steps(gray, pts, e_col, e_row) >= ARM_CONTRAST * contrast
-        return cls(levels, quadrant_levels(gray, pts, e_col, e_row, near), arms_ok)
+        arms_ok = _weakest_arm(vals[24 * n:], n) >= ARM_CONTRAST * contrast
+        return cls(levels, near_levels, arms_ok)
 
     def is_corner(self, even: np.ndarray) -> np.ndarray:
         """(N,) bool: ``is_corner`` with the TL and BR squares bright where even (N,)."""
@@ -88,16 +113,22 @@ def arm_steps(gray: np.ndarray, pts: np.ndarray, e_col: np.ndarray, e_row: np.nd
     next corner: on a true corner each separates a bright square from a dark one. A corner on the board's outermost line (the white
     margin and a printed frame beyond it: a T-junction that passes the quadrant test) has
     one arm with the same colour on both sides."""
+    return _weakest_arm(_sampled(gray, _arm_points(pts, e_col, e_row)), len(pts))
+
+
+def _arm_points(pts: np.ndarray, e_col: np.ndarray, e_row: np.ndarray) -> np.ndarray:
+    """(N * 8, 2) float32: ``arm_steps``' sample points, corner by corner, arm by arm, side by side."""
     arms = np.stack([e_col, -e_col, e_row, -e_row], 1)                 # (N, 4, 2)
     across = np.stack([e_row, e_row, e_col, e_col], 1)
     side = np.linalg.norm(across, axis=-1, keepdims=True)
     off = across / np.maximum(side, 1e-9) * np.clip(ARM_SIDE * side, 1.5, 0.2 * side)
     mid = pts[:, None, :] + ARM_AT * arms
-    m = np.stack([mid + off, mid - off], 2).astype(np.float32).reshape(-1, 1, 2)
-    v = cv2.remap(gray, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    v = v.reshape(len(pts), 4, 2).astype(np.float64)
-    step = np.abs(v[..., 0] - v[..., 1]).min(1)
-    return step
+    return np.stack([mid + off, mid - off], 2).astype(np.float32).reshape(-1, 2)
+
+
+def _weakest_arm(vals: np.ndarray, n: int) -> np.ndarray:
+    v = vals.reshape(n, 4, 2)
+    return np.abs(v[..., 0] - v[..., 1]).min(1)
 
 
 def is_x_junction(levels: np.ndarray, even: np.ndarray) -> np.ndarray:

@@ -113,21 +113,24 @@ def linearised_view_errors(model: CameraModel, poses: np.ndarray, data: Data, sc
     for v, (span, a, at, b, nvv, share, held_part) in enumerate(parts):
         rv = r_view[span]
         rhs = at @ rv
+        held_move = None if held_part is None else held_part[2]
         if held_part is not None:
             rhs -= (cross - held_part[1]) @ held_part[2]
-        steps[v] = _spd_solve(s - share + ridge, rhs)
-        e = rv + a @ steps[v]
-        if held_part is not None:
-            e += held_part[0] @ held_part[2]
-        e -= b @ np.linalg.solve(nvv, b.T @ e)
-        errors[v] = float(np.sum(e[weight[span]] ** 2))
-        held_move = None if held_part is None else held_part[2]
-        moved = _moved(model, free_idx, steps[v], held_move)
-        view = select_views(data, np.array([v]))
-        e_moved = residuals(moved, poses[[v]], view).ravel()
-        e_moved -= b @ np.linalg.solve(nvv, b.T @ e_moved)
-        predicted = float(np.sum(e_moved[weight[span]] ** 2))
-        if not abs(predicted - errors[v]) <= LINEAR_AGREEMENT * max(errors[v], predicted):
+        try:
+            steps[v] = _spd_solve(s - share + ridge, rhs)
+            e = rv + a @ steps[v]
+            if held_part is not None:
+                e += held_part[0] @ held_move
+            e -= b @ np.linalg.solve(nvv, b.T @ e)
+            errors[v] = float(np.sum(e[weight[span]] ** 2))
+            moved = residuals(_moved(model, free_idx, steps[v], held_move), poses[[v]],
+                              select_views(data, np.array([v]))).ravel()
+            moved -= b @ np.linalg.solve(nvv, b.T @ moved)
+            predicted = float(np.sum(moved[weight[span]] ** 2))
+            linear = abs(predicted - errors[v]) <= LINEAR_AGREEMENT * max(errors[v], predicted)
+        except np.linalg.LinAlgError:  # undetermined to first order without the view
+            linear = False
+        if not linear:
             errors[v], steps[v] = _refit_without(model, poses, data, v, free_idx, held_move, weight[span][::2])
             refitted += 1
     return ViewErrors(errors, steps, refitted)

@@ -196,7 +196,8 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -
         candidates.append(Candidate(spec.name, spec.label, errors, reason,
                                     None if fit is None else int(np.sum(_free(fit.result.model)))))
     how = (f"error per axis on each of the {sample.n_views} views left out of the fit (one Gauss-Newton step "
-           "from the full fit without the view, then only the view's pose refit)")
+           "from the full fit without the view, or a refit where that step leaves the linear regime; then only "
+           "the view's pose refit)")
     return choose(candidates, counts, how=how)
 
 

@@ -11,9 +11,9 @@ from calib_core.fitting.solve import Data
 from calib_core.models import camera
 from calib_core.models.fisheye import FisheyeModel
 from calib_core.pipeline import to_data
+from calib_core.synth.opencv_lenses import around
 
 from ..conftest import shared_data
-from ..simulated_lenses import around
 
 
 def rays_up_to(angle: float) -> Data:

@@ -11,8 +11,7 @@ from calib_core.methods import METHODS
 from calib_core.observations import Observations, View
 from calib_core.pipeline import to_data
 from calib_core.synth import targets
-
-from ..simulated_lenses import views_of, webcam_lens
+from calib_core.synth.opencv_lenses import views_of, webcam_lens
 
 
 def cube_set(kind: str, n: int, seed: int = 0, sigma: float = 0.2) -> Observations:

@@ -1,6 +1,8 @@
 """Lenses and boards simulated with OpenCV's own projections (or a plain
-Kannala-Brandt formula past 180°), independent of freecal's synthetic
-protocol: observations as ``freecal.observations/1`` would carry them."""
+Kannala-Brandt formula past 180°), independent of the paper's synthetic
+protocol (``protocol.py``) that the method was developed on: observations as
+``freecal.observations/1`` would carry them, for the tests and for
+``python -m benchmarks lenses``."""
 from __future__ import annotations
 
 import cv2
@@ -20,7 +22,7 @@ def views_of(project, size, n, seed, sigma, distance, spread, bend=0.0):
     rng = np.random.default_rng(seed)
     centre = BOARD[:, :2].mean(axis=0)
     q = (BOARD[:, :2] - centre) / np.abs(BOARD[:, :2] - centre).max()
-    views = []
+    views: list[dict] = []
     while len(views) < n:
         rot = cv2.Rodrigues(np.radians(rng.uniform(-40, 40, 3)) * [1, 1, 0.5])[0]
         shift = np.r_[rng.uniform(-spread, spread, 2) * distance, distance * rng.uniform(0.8, 1.2)]
@@ -42,10 +44,19 @@ def fisheye_lens(pc):
     return cv2.fisheye.projectPoints(pc.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), k, d)[0].reshape(-1, 2)
 
 
-def webcam_lens(pc):
-    k = np.array([[600.0, 0, 327], [0, 600, 235], [0, 0, 1]])
-    d = np.array([-0.3, 0.12, 0.001, -0.002, -0.02])
-    return cv2.projectPoints(pc, np.zeros(3), np.zeros(3), k, d)[0].reshape(-1, 2)
+WEBCAM = np.array([[600.0, 0, 327], [0, 600, 235], [0, 0, 1]])  # 640 x 480
+
+
+def opencv_lens(coefficients):
+    """A 640 x 480 camera through OpenCV's model with these distortion coefficients (5, 8, 12 or 14)."""
+    d = np.asarray(coefficients, dtype=float)
+    return lambda pc: cv2.projectPoints(pc, np.zeros(3), np.zeros(3), WEBCAM, d)[0].reshape(-1, 2)
+
+
+webcam_lens = opencv_lens([-0.3, 0.12, 0.001, -0.002, -0.02])
+mustache_lens = opencv_lens([0.2, -0.4, 0, 0, 0.25])  # barrel in the middle, pincushion at the edge
+prism_lens = opencv_lens([-0.3, 0.12, 0.001, -0.002, -0.02, 0, 0, 0, 0.004, -0.002, 0.003, 0.001])  # thin prism
+tilted_lens = opencv_lens([-0.3, 0.12, 0.001, -0.002, -0.02, 0, 0, 0, 0, 0, 0, 0, 0.02, -0.015])  # tilted sensor
 
 
 def rippled_lens(pc, amplitude=1.2):
@@ -68,7 +79,8 @@ def beyond_180(pc):
 def around(n, seed, sigma):
     """Views of BOARD facing the camera from up to 100° off its axis, 250-400 mm away."""
     rng = np.random.default_rng(seed)
-    centre, views = BOARD[:, :2].mean(axis=0), []
+    centre = BOARD[:, :2].mean(axis=0)
+    views: list[dict] = []
     while len(views) < n:
         azimuth, off_axis = rng.uniform(0, 2 * np.pi), np.radians(rng.uniform(0, 100))
         towards = np.array([np.sin(off_axis) * np.cos(azimuth), np.sin(off_axis) * np.sin(azimuth), np.cos(off_axis)])

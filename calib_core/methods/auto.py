@@ -5,13 +5,15 @@ Candidates, simplest first: OpenCV's 5-coefficient model, Kannala–Brandt,
 the rational model, the paper's B-spline field, and a field over the
 rational core. A lens past the pinhole's reach (corners beyond ~89° off
 axis) gets Kannala–Brandt and a field over it instead, the only models that
-represent every corner. Every candidate that can fit the corners is scored
-on each view left out of its fit (``crossval.linearised_view_errors``; for a
-field over a core, the view leaves the core's own fit too) and the simplest
-within the noise of the lowest is kept (``choice.choose``); it is returned as
-its own method returns it, so
-the calibration is written with that model's type (``opencv``, ``fisheye``,
-``bspline``, ``hybrid``) and ``settings.chosen`` names it.
+represent every corner. The fields are fitted only where a field over the
+most flexible core predicts views left out of it better than no field
+(``bspline.field_screen``). Every candidate fitted is scored on each view
+left out of its fit (``crossval.linearised_view_errors``; for a field over
+a core, the view leaves the core's own fit too) and the simplest within the
+noise of the lowest is kept (``choice.choose``); it is returned as its own
+method returns it, so the calibration is written with that model's type
+(``opencv``, ``fisheye``, ``bspline``, ``hybrid``) and ``settings.chosen``
+names it.
 
 Whether a core or a field pays is a property of the lens, not of the number
 of views: on a large set it is decided on ``decision_views`` of them, and only

@@ -313,7 +313,6 @@ class FieldScreen:
     core: str
     gain: float
     standard_error: float
-    lambda_smooth: float
 
     @property
     def pays(self) -> bool:
@@ -339,7 +338,7 @@ def field_screen(data: Data, image_size, core: str, core_fit: Fit) -> FieldScree
     n = len(none)
     gain = (none - cv.group_sse[:, cv.best]) * n / cv.counts.sum()  # its mean is the gain per corner
     se = float(np.std(gain, ddof=1) / np.sqrt(n)) if n > 1 else np.inf
-    return FieldScreen(core, float(gain.mean()), se, float(cv.lambdas[cv.best]))
+    return FieldScreen(core, float(gain.mean()), se)
 
 
 # ---- shared steps ---------------------------------------------------------------------

@@ -29,6 +29,8 @@ from .data import RigResult
 from .scene import AXIS_LENGTH, PLANE_DEPTH, Built, add_camera, overview, scale_and_error_range
 
 FRUSTUM_SHARE = 0.6   # a frustum's depth, as a share of the distance to the nearest other camera
+LABEL_STEP = 0.8      # each camera's name this many frustums higher than the one before: close cameras' names
+                      # (a stereo pair's, side by side) would otherwise print over each other
 
 
 def camera_poses(result: RigResult, scale: float) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -62,7 +64,8 @@ def build_rig_scene(scene: Any, result: RigResult) -> Built:
         add_camera(scene, built.handles, f"/cameras/{k}", cam.calibration, size,
                    f"{cam.name} (reference)" if reference else cam.name,
                    colour=tuple(int(c) for c in colours[k]),  # type: ignore[arg-type]
-                   axes=min(AXIS_LENGTH, size * 1.5) if reference else 0.0, wxyz=wxyz, position=position)
+                   axes=min(AXIS_LENGTH, size * 1.5) if reference else 0.0, wxyz=wxyz, position=position,
+                   label_height=(0.4 + LABEL_STEP * k) * size)
     add_boards(scene, built.handles, result.boards, scale, vmax)
     points = np.concatenate([board_points(b, scale) for b in result.boards]) if result.boards else np.zeros((0, 3))
     built.view = overview(np.vstack([points, centres]))

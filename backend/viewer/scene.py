@@ -108,10 +108,12 @@ def _add_camera(scene: Any, handles: dict[str, Any], result: JobResult, depth: f
 
 def add_camera(scene: Any, handles: dict[str, Any], path: str, calibration: Any, size: float, label: str, *,
                colour: tuple[int, int, int] = (40, 40, 40), axes: float = 0.0,
-               wxyz: Any = (1.0, 0.0, 0.0, 0.0), position: Any = (0.0, 0.0, 0.0)) -> None:
+               wxyz: Any = (1.0, 0.0, 0.0, 0.0), position: Any = (0.0, 0.0, 0.0),
+               label_height: float | None = None) -> None:
     """One camera under ``path``: a frame at its pose (camera → scene), its frustum (``size`` deep, the
-    image's aspect and vertical field of view) in ``colour``, its name; with ``axes`` > 0 its axes that long,
-    labelled x right, y down, z optical axis (``path``/x, /y, /z). The rig's scene draws its cameras with it."""
+    image's aspect and vertical field of view) in ``colour``, its name ``label_height`` above it (default
+    0.4 of the axes or the frustum); with ``axes`` > 0 its axes that long, labelled x right, y down, z optical
+    axis (``path``/x, /y, /z). The rig's scene draws its cameras with it."""
     w, h = calibration.image_size
     fy = calibration.model.intrinsics_json()["fy"]
     handles[path] = scene.add_frame(path, show_axes=axes > 0, axes_length=axes or AXIS_LENGTH,
@@ -126,7 +128,8 @@ def add_camera(scene: Any, handles: dict[str, Any], path: str, calibration: Any,
         for axis, (tip, text) in tips.items():
             handles[f"{path}/{axis}"] = scene.add_label(f"{path}/{axis}", text, position=tip,
                                                         anchor="center-left", font_screen_scale=0.8)
-    handles[f"{path}/label"] = scene.add_label(f"{path}/label", label, position=(0, -(axes or size) * 0.4, 0),
+    height = (axes or size) * 0.4 if label_height is None else label_height
+    handles[f"{path}/label"] = scene.add_label(f"{path}/label", label, position=(0, -height, 0),
                                                anchor="bottom-center")
 
 

@@ -113,6 +113,9 @@ def test_cameras_are_named_coloured_and_the_reference_carries_the_world_axes(ser
     assert f"/cameras/{other}/x" not in built.handles and not built.handles[f"/cameras/{other}"].show_axes
     colours = {tuple(built.handles[f"/cameras/{k}/frustum"].color) for k in range(len(rig.cameras))}
     assert len(colours) == len(rig.cameras)
+    # a stereo pair stands side by side, turned alike: its names at different heights, not printed over each other
+    heights = [-built.handles[f"/cameras/{k}/label"].position[1] for k in range(len(rig.cameras))]
+    assert abs(heights[0] - heights[1]) >= 0.5 * built.legend["frustum"]
 
 
 def test_the_board_is_drawn_at_every_frame_in_its_own_colour(server, rig, result):

@@ -33,7 +33,7 @@ def test_job_progress_results_and_restart(service):
     running = [j for j in seen if j["state"] == "running"]
     assert running, "never saw the job running"
     stages = {j["stage"].rsplit(": ", 1)[-1] for j in running}  # "<candidate model>: <stage>"
-    assert stages & {"initialise", "knots", "control points", "joint optimisation"}
+    assert stages & {"initialise", "levenberg-marquardt", "whether a field pays", "knots", "joint optimisation"}
     assert any(0 < j["progress"] < 100 for j in running)
     assert job["progress"] == 100 and job["timings"]["run_seconds"] > 0 and job["timings"]["stages"]
 

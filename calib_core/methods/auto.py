@@ -200,6 +200,9 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -
     how = (f"error per axis on each of the {sample.n_views} views left out of the fit (one Gauss-Newton step "
            "from the full fit without the view, or a refit where that step leaves the linear regime; then only "
            "the view's pose refit)")
+    if all(c.view_sse is None for c in candidates):
+        raise DataError("no model could be validated on these corners: "
+                        + "; ".join(dict.fromkeys(f"{c.label}: {c.error}" for c in candidates if c.error)))
     return choose(candidates, counts, how=how)
 
 

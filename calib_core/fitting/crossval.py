@@ -65,7 +65,13 @@ def linearised_view_errors(model: CameraModel, poses: np.ndarray, data: Data, sc
     Δ = (S − S_v)⁻¹ (A_vᵀ r_v − (T − T_v) δc) with T the pose-reduced cross
     block of free and held columns, and the view's residuals gain C_v δc.
     Without it a two-stage model is scored with the left-out view still
-    inside its first stage, which flatters it on small sets."""
+    inside its first stage, which flatters it on small sets.
+
+    Each view's step is checked: the model moved by it predicts the view
+    again (its pose answering linearly). A view where that disagrees with
+    the closed form (``LINEAR_AGREEMENT``), or without which the model is
+    undetermined to first order, is refitted exactly (``refitted`` counts
+    them)."""
     free = model.free_mask()
     # The held parameters' move per view, when the model holds any (else they need no answer).
     held_moves = held_steps if free is not None and not free.all() else None

@@ -150,12 +150,17 @@ def parse_json(text: str, source: str) -> Any:
         raise FormatError(f"{source}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
 
 
+def json_text(doc: Any) -> str:
+    """A document as freecal writes its files: strict JSON (no NaN), one space of indent, a final newline."""
+    return json.dumps(doc, indent=1, allow_nan=False) + "\n"
+
+
 def write_json(path: str | Path, doc: Any) -> None:
     """Write atomically: a reader never sees a half-written file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(doc, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    tmp.write_text(json_text(doc), encoding="utf-8")
     tmp.replace(path)
 
 

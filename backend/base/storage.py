@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import IO, Any, BinaryIO
 
 CHUNK = 1024 * 1024
+RIG_FILE = "rig.json"  # a done rig job's result (freecal.rig/1)
 # errno values meaning "this data directory takes no writes now" (full, or read-only / not permitted)
 NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
 READ_ONLY = (errno.EROFS, errno.EACCES, errno.EPERM)
@@ -63,6 +64,10 @@ class Storage:
     def board_suggestion_path(self, set_id: str) -> Path:
         """The board size the photos show, when it is not the set's (backend/queue/detect_job.py)."""
         return self.set_dir(set_id) / "board_suggestion.json"
+
+    def rig_camera_path(self, job_id: str, k: int) -> Path:
+        """A rig job's copy of camera ``k``'s corners, taken when the job was created."""
+        return self.job_dir(job_id) / f"camera-{k}.json"
 
     def job_dir(self, job_id: str) -> Path:
         return self.root / "jobs" / job_id

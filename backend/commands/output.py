@@ -8,7 +8,6 @@ the progress and the notes.
 from __future__ import annotations
 
 import contextlib
-import json
 import sys
 from collections.abc import Iterator, Sequence
 from typing import Any, TextIO
@@ -78,8 +77,9 @@ def table(headers: Sequence[str], rows: Sequence[Sequence[Any]], file=None) -> N
 def json_text(doc: Any) -> str:
     """A document as freecal writes and prints JSON: strict (a non-finite number is null), one space of indent."""
     from calib_core.calibration import json_safe
+    from calib_core.observations import json_text as strict
 
-    return json.dumps(json_safe(doc), indent=1, allow_nan=False) + "\n"
+    return strict(json_safe(doc))
 
 
 def print_json(doc: Any) -> None:

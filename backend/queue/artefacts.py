@@ -17,6 +17,7 @@ from calib_core import Calibration, Observations
 from calib_core.calibration import json_safe
 from calib_core.errors import CalibError
 from calib_core.evaluation.compare import Comparison
+from calib_core.observations import json_text
 from calib_core.report.tables import report_files, to_csv
 from calib_core.rig import Rig
 
@@ -63,13 +64,8 @@ def validation_of(cal: Calibration) -> dict[str, Any]:
 
 
 # a rig's files: freecal.rig/1, then `freecal export RIG.json --to kalibr|opencv`'s output
-RIG_FILE = "rig.json"
+RIG_FILE = storage.RIG_FILE
 RIG_EXPORTS = {"camchain.yaml": "kalibr", "stereo.yaml": "opencv"}
-
-
-def rig_text(rig: Rig) -> str:
-    """freecal.rig/1 as `freecal rig -o` writes it (the CLI's ``json_text``): strict JSON, one space of indent."""
-    return json.dumps(json_safe(rig.to_json()), indent=1, allow_nan=False) + "\n"
 
 
 def write_rig(out: Path, rig: Rig, progress: Callable[[str, float], None]) -> tuple[list[str], dict[str, str]]:
@@ -77,7 +73,7 @@ def write_rig(out: Path, rig: Rig, progress: Callable[[str, float], None]) -> tu
     Each export is made from rig.json read back, as `freecal export rig.json` makes it."""
     from calib_core.exports.rig import export_rig
 
-    text = rig_text(rig)
+    text = json_text(json_safe(rig.to_json()))  # as `freecal rig -o` writes it
     _write(out, {RIG_FILE: text})
     written, unavailable = [RIG_FILE], {}
     saved = Rig.from_json(json.loads(text))

@@ -25,14 +25,14 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     settings, spec = split_rig(job["settings"])
     if spec is None:
         raise DataError("this rig job names no cameras; create it again")
-    out = ctx.storage.job_dir(job["id"])
     cameras = {}
     for k, name in enumerate(spec["names"]):
-        path = out / f"camera-{k}.json"  # services/rigs.camera_file: the corners as they were at creation
+        path = ctx.storage.rig_camera_path(job["id"], k)  # the corners as they were at creation
         if not path.exists():
             raise DataError(f"camera {name!r}: its corners are missing from the job's folder; create the job again")
         cameras[name] = Observations.load(path)
     rig = calibrate_rig(cameras, job["method"], spec["reference"], lambda s, f: run.progress(s, f, 0.0, 0.85),
                         refine_models=not spec["hold_models"], **settings)
-    names, unavailable = artefacts.write_rig(out, rig, lambda s, f: run.progress(s, f, 0.85, 1.0))
+    names, unavailable = artefacts.write_rig(ctx.storage.job_dir(job["id"]), rig,
+                                             lambda s, f: run.progress(s, f, 0.85, 1.0))
     return {"artefacts": names, "summary": artefacts.rig_summary(rig, unavailable)}

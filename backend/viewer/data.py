@@ -22,6 +22,7 @@ from ..base.context import Context
 from ..base.repository import jobs as job_rows
 from ..base.repository import sets as set_rows
 from ..base.repository.jobs import split_rig
+from ..base.storage import RIG_FILE
 
 
 @dataclass
@@ -144,9 +145,6 @@ def _observations(ctx: Context, job: dict[str, Any]) -> Observations | None:
     return None
 
 
-RIG_FILE = "rig.json"   # queue/artefacts.RIG_FILE (the viewer does not import the worker's code)
-
-
 def _load_rig(ctx: Context, job: dict[str, Any]) -> RigResult | None:
     out = ctx.storage.job_dir(job["id"])
     if not (out / RIG_FILE).exists():
@@ -155,7 +153,7 @@ def _load_rig(ctx: Context, job: dict[str, Any]) -> RigResult | None:
     spec = split_rig(job["settings"])[1] or {}
     cameras = {}
     for k, name in enumerate(spec.get("names", [])):
-        path = out / f"camera-{k}.json"   # app/services/rigs.camera_file: each camera's corners
+        path = ctx.storage.rig_camera_path(job["id"], k)
         if path.exists():
             cameras[name] = Observations.load(path)
     result = from_rig(job["id"], rig, cameras)

@@ -9,6 +9,8 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from ..base.repository.jobs import split_rig
+
 
 def job_what(job: dict[str, Any]) -> str:
     """What the job fits: "auto → Kannala-Brandt model (k1..k4)", "every method compared → zhang", "bspline"."""
@@ -41,7 +43,7 @@ def job_label(job: dict[str, Any], set_name: str | None) -> str:
 def rig_label(job: dict[str, Any]) -> str:
     """A rig job's name in the panel, as the page's Rig card names it (frontend/js/rig.js ``rigName``):
     "Rig left + right · zhang · 14:05 · 0.262 px"."""
-    spec = (job.get("settings") or {}).get("rig") or {}   # repository.jobs.RIG_KEY
+    spec = split_rig(job.get("settings") or {})[1] or {}
     rmse = ((job.get("summary") or {}).get("metrics") or {}).get("rmse")
     parts = ["Rig " + " + ".join(spec.get("names") or []), job.get("method") or "", when(job.get("created_at"))]
     if isinstance(rmse, (int, float)):

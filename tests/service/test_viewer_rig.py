@@ -45,7 +45,7 @@ def ctx(tmp_path_factory, cameras, rig):
         out = ctx.storage.job_dir(job_id)
         out.mkdir(parents=True, exist_ok=True)
         for k, name in enumerate(NAMES):
-            cameras[name].save(out / f"camera-{k}.json")   # services/rigs.camera_file
+            cameras[name].save(ctx.storage.rig_camera_path(job_id, k))
         job_rows.create(ctx.db, job_id, "rig", None, "zhang", {job_rows.RIG_KEY: spec})
         attempt = job_rows.claim(ctx.db, job_id, "test")
         if done:

@@ -10,7 +10,7 @@ each set's corners taken now, so a set deleted or detected again later changes n
 from __future__ import annotations
 
 import re
-from pathlib import Path, PurePath
+from pathlib import PurePath
 from typing import Any
 
 from calib_core import Observations
@@ -30,11 +30,6 @@ from .ids import new_id
 
 FRAMES_HOW = ("views of different cameras are matched by frame: a view's \"frame\" in the observations, else the "
               "last run of digits in its name (left07.jpg and right07.jpg are frame 07)")
-
-
-def camera_file(job_dir: Path, k: int) -> Path:
-    """The copy of camera ``k``'s corners a rig job reads (taken when the job was created)."""
-    return job_dir / f"camera-{k}.json"
 
 
 def create(ctx: Context, queue: Queue, body: RigJobCreate) -> str:
@@ -62,10 +57,9 @@ def create(ctx: Context, queue: Queue, body: RigJobCreate) -> str:
     _check_frames(cameras, rows, reference)
 
     job_id = new_id()
-    out = ctx.storage.job_dir(job_id)
     try:
         for k, row in enumerate(rows):
-            storage.write_bytes(camera_file(out, k), ctx.storage.observations_path(row["id"]).read_bytes())
+            storage.write_bytes(ctx.storage.rig_camera_path(job_id, k), ctx.storage.observations_path(row["id"]).read_bytes())
         spec = {"set_ids": list(body.set_ids), "names": names, "reference": reference, "hold_models": body.hold_models}
         jobs.create(ctx.db, job_id, "rig", None, body.method, {**body.settings, jobs.RIG_KEY: spec})
     except BaseException:

@@ -44,22 +44,52 @@ def design_diagnostics(design: sp.csr_matrix, weights: np.ndarray, regulariser: 
                        breaks_u: np.ndarray, breaks_v: np.ndarray, samples: np.ndarray) -> dict:
     """Rank, condition numbers of the (weighted, regularised) normal matrices for
     x and y, zero columns and empty intervals of the control-point design."""
-    b = design.toarray()
-    sv = np.linalg.svd(b, compute_uv=False)
-    tol = sv.max() * max(b.shape) * np.finfo(float).eps if sv.size else 0.0
+    design = sp.csr_matrix(design)
+    sv = singular_values(design)
+    tol = sv.max() * max(design.shape) * np.finfo(float).eps if sv.size else 0.0
     reg = (regulariser.T @ regulariser).toarray()
     conds = []
     for k in range(weights.shape[1]):
         normal = gram(design, weights[:, k]) + reg  # BᵀWB from B's sparse rows
         conds.append(float(np.linalg.cond(normal)))
+    column_mass = np.bincount(design.indices, weights=np.abs(design.data), minlength=design.shape[1])
     return {
         "rank": int(np.sum(sv > tol)),
-        "n_controls": int(b.shape[1]),
+        "n_controls": int(design.shape[1]),
         "condition_x": conds[0],
         "condition_y": conds[1],
         "condition_unregularised": float(sv.max() / sv.min()) if sv.size and sv.min() > 0 else float("inf"),
-        "zero_columns": int(np.sum(np.abs(b).sum(axis=0) == 0)),
+        "zero_columns": int(np.sum(column_mass == 0)),
         "empty_intervals_u": int(np.sum(np.histogram(samples[:, 0], bins=breaks_u)[0] == 0)),
         "empty_intervals_v": int(np.sum(np.histogram(samples[:, 1], bins=breaks_v)[0] == 0)),
         "intervals": [len(breaks_u) - 1, len(breaks_v) - 1],
     }
+
+
+def singular_values(design: sp.csr_matrix) -> np.ndarray:
+    """The singular values of a sparse design whose rows each touch a few
+    columns (a B-spline field's: the 16 controls of one knot cell), as a
+    dense SVD gives them, for a fraction of its N·n² cost.
+
+    Rows that start at the same column touch the same few: each such group is
+    reduced to its triangular QR factor, and the stacked factors have the
+    design's singular values (B = Q R with Q orthogonal), at most a few rows
+    per column. The squared route, BᵀB's eigenvalues, loses the small ones
+    the rank and the condition number are about."""
+    design = sp.csr_matrix(design)
+    lengths = np.diff(design.indptr)
+    rows = np.flatnonzero(lengths > 0)
+    if not len(rows):
+        return np.zeros(min(design.shape))
+    first = np.minimum.reduceat(design.indices, design.indptr[rows])
+    order = rows[np.argsort(first, kind="stable")]
+    bounds = np.flatnonzero(np.diff(np.sort(first))) + 1
+    factors = []
+    for group in np.split(order, bounds):
+        block = design[group]
+        cols = np.unique(block.indices)
+        r = np.linalg.qr(block[:, cols].toarray(), mode="r")
+        stacked = np.zeros((len(r), design.shape[1]))
+        stacked[:, cols] = r
+        factors.append(stacked)
+    return np.linalg.svd(np.vstack(factors), compute_uv=False)

@@ -32,10 +32,12 @@ from ..errors import DataError
 from ..fit_report import ChoiceReport
 from ..fitting.choice import Candidate, ModelChoice, choose
 from ..fitting.crossval import linearised_view_errors
-from ..fitting.init import initialise
-from ..fitting.solve import Data, spread_views
-from .bspline import BSplineSettings, FieldScreen, field_screen, fit_core, fit_field, ideal_samples
+from ..fitting.init import initialise, poses_from_rays
+from ..fitting.solve import Data, SolveSettings, levenberg_marquardt, spread_views
+from ..models.camera import PINHOLE_MAX_ANGLE_DEG
+from .bspline import BSplineSettings, FieldScreen, field_design, field_screen, fit_core, fit_field
 from .common import Fit, Progress, named, no_progress, scaled
+from .opencv import pinhole_visible
 
 
 @dataclass
@@ -68,13 +70,12 @@ WIDE_CANDIDATES = (Spec("fisheye", "Kannala-Brandt model", "fisheye", None),
 
 
 def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit:
-    init = initialise(data, image_size)
-    _, seen = ideal_samples(init.model, init.poses, data, "pinhole")
+    sample = data if data.n_views <= s.decision_views else spread_views(data, s.decision_views)
+    init = initialise(sample, image_size)  # cached, before the candidates share it from two threads
+    seen = init.model.rays(data.image_points)[:, 2] > np.cos(np.radians(PINHOLE_MAX_ANGLE_DEG))
     wide = not seen.all()
     specs = WIDE_CANDIDATES if wide else CANDIDATES
-    sample = data if data.n_views <= s.decision_views else spread_views(data, s.decision_views)
-    initialise(sample, image_size)  # cached, before the candidates share it from two threads
-    share = 1.0 if sample is data else 0.6
+    share = 1.0 if sample is data else 0.8
     fits, why_not, screen = _fit_candidates(specs, sample, image_size, scaled(progress, 0.0, 0.8 * share))
     if all(f is None for f in fits):
         raise DataError("no model fits these corners: " + "; ".join(dict.fromkeys(e for e in why_not if e)))
@@ -90,13 +91,50 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
         choice.how += f"; decided on {sample.n_views} of the {data.n_views} views"
     spec = specs[choice.chosen]
     fit = fits[choice.chosen]
-    if sample is not data:  # the chosen model on every view, with the grid and smoothing the choice found
-        grid = {} if spec.field is None else {"intervals": tuple(fit.settings["intervals_used"]),
-                                              "lambda_smooth": float(fit.settings["lambda_smooth"])}
-        part = named(scaled(progress, share, 1.0), f"{spec.label}, on all {data.n_views} views")
-        fit = _fit_spec(spec, data, image_size, {}, part, **grid)
+    if sample is not data:
+        core_fit = next((f for sp, f in zip(specs, fits, strict=True) if sp.field is None and sp.core == spec.core), None)
+        fit = _on_all_views(spec, fit, core_fit, data, image_size,
+                            named(scaled(progress, share, 1.0), f"{spec.label}, on all {data.n_views} views"))
     settings = {**fit.settings, "chosen": spec.name, "decision_views": s.decision_views}
     return dataclasses.replace(fit, settings=settings, model_choice=ChoiceReport.from_json(choice.to_json()))
+
+
+def _on_all_views(spec: Spec, fit: Fit, core_fit: Fit | None, data: Data, image_size, progress: Progress) -> Fit:
+    """The model chosen on the sample (``fit``; ``core_fit``: its core's fit
+    to the sample), fitted to every view. A parametric model or the paper's
+    field starts where the sample left it (``_refined``). A field over a core
+    is fitted again on its grid and smoothing over its core refined so: its
+    knots then follow the core's residuals on every view (kept from the
+    sample, they predicted views it had not seen worse: docs/model-choice.md,
+    "Speed, and how it scales")."""
+    if spec.core is None or spec.field is None:
+        return _refined(fit, data, progress)
+    core = _refined(core_fit, data, scaled(progress, 0.0, 0.3))
+    grid = {"intervals": tuple(fit.settings["intervals_used"]), "lambda_smooth": float(fit.settings["lambda_smooth"])}
+    return _fit_spec(spec, data, image_size, {spec.core: core}, scaled(progress, 0.3, 1.0), **grid)
+
+
+def _refined(fit: Fit, data: Data, progress: Progress) -> Fit:
+    """``fit``'s model (its camera, knots and smoothing) fitted to every view
+    of ``data``, each view posed on the model's rays first."""
+    model = fit.result.model
+    poses = poses_from_rays(model, data)
+    if poses is None:
+        raise DataError("could not pose every view under the chosen model; remove views with very few corners")
+    ok = pinhole_visible(poses, data) if model.base == "pinhole" else np.ones(data.n_points, dtype=bool)
+    sub = data.points(ok)
+    progress("joint optimisation", 0.0)
+    res = levenberg_marquardt(model, poses, sub, _solve_settings(fit),
+                              lambda it, _: progress("joint optimisation", it / (it + 3)))
+    diagnostics = dict(fit.diagnostics)
+    if model.bspline_field is not None:
+        diagnostics["design"] = field_design(res.model, res.poses, sub, BSplineSettings())
+    return dataclasses.replace(fit, result=res, excluded=~ok, diagnostics=diagnostics)
+
+
+def _solve_settings(fit: Fit) -> SolveSettings:
+    """How ``fit``'s own method converges a fit of its model."""
+    return fit.solve_settings or SolveSettings(fit.settings["max_iterations"], fit.settings["ftol"])
 
 
 def _fit_spec(spec: Spec, data: Data, image_size, cores: dict[str, Fit | None], progress: Progress,

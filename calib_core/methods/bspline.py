@@ -502,6 +502,22 @@ def _restarted(res, start, reference, data: Data, final: SolveSettings, why: str
     return keep, Restart(why, record(res), record(again), "restarted" if keep is again else "first", warning)
 
 
+def field_design(model: BSplineModel | HybridModel, poses: np.ndarray, data: Data, s: BSplineSettings) -> dict:
+    """The design diagnostics of ``model``'s field where these corners meet it
+    (``metrics.design_diagnostics``): at each corner's ideal pixel, or its
+    pixel under a hybrid's core."""
+    pc = camera.transform(poses, data.view_index, data.object_points)
+    samples = model.core.project(pc) if isinstance(model, HybridModel) else model.ideal_pixel(
+        camera.normalise(pc, model.base))
+    weights = sample_weights(samples, data.image_points - samples, s)
+    field = model.bspline_field
+    reg_rows = sp.vstack([np.sqrt(model.lambda_reg) * sp.identity(field.n_controls),
+                          np.sqrt(model.lambda_smooth) * field.bending()])
+    breaks = model.knot_breaks()
+    return design_diagnostics(field.design(samples).matrix(field.n_controls), weights / weights.mean(axis=0),
+                              reg_rows, breaks[0], breaks[1], samples)
+
+
 def sample_weights(samples: np.ndarray, response: np.ndarray, s: BSplineSettings) -> np.ndarray:
     """(N, 2) per-axis sample weights (``s.weighting``; the paper's local std)."""
     ks = s.knot_settings((10, 10))
@@ -573,17 +589,13 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
                                                                 samples, response, weights)
         poses = first.poses
 
-    field = model.field
     n_params = model.n_params + 6 * data.n_views
     if 2 * ok.sum() <= n_params:
         raise DataError(
             f"{ok.sum()} corners give {2 * ok.sum()} equations for {n_params} unknowns: add views, "
             "or use fewer knot intervals (--intervals N)"
         )
-    reg_rows = sp.vstack([np.sqrt(s.lambda_reg) * sp.identity(field.n_controls), np.sqrt(lam) * field.bending()])
     diagnostics = {
-        "design": design_diagnostics(field.design(samples).matrix(field.n_controls), weights / weights.mean(axis=0),
-                                     reg_rows, breaks[0], breaks[1], samples),
         "initialisation": init_info,
         "domain": list(problem.domain),
         "smoothing_curve": curve,
@@ -603,6 +615,7 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
         progress("restart", 0.9)
         restart = _fitted(problem, breaks, s.lambda_reg, lam, start, *first_samples)
         res, restart_record = _restarted(res, restart, reference, sub, final, wrong)
+    diagnostics["design"] = field_design(res.model, res.poses, sub, s)
     settings = dataclasses.asdict(s)
     settings.update(res.model.settings_json())
     settings["intervals_used"] = [len(breaks[0]) - 1, len(breaks[1]) - 1]

@@ -189,3 +189,20 @@ def test_a_set_too_small_for_a_field_gets_a_core_alone_and_names_why():
             or paper.validation_rmse > 2 * best.validation_rmse)
     with pytest.raises(DataError, match="equations for .* unknowns: add views, or use fewer knot intervals"):
         calibrate(obs, "bspline", knots="uniform", intervals=15, core="none")
+
+
+@pytest.mark.slow
+def test_a_field_decided_on_a_spread_of_views_is_fitted_to_every_view_from_there():
+    from calib_core import synth
+    from calib_core.methods.auto import AutoSettings
+
+    n = AutoSettings().decision_views
+    s = synth.generate("asymmetric", 0.3, 0, n_views=n + 4)
+    cal = calibrate(s.train)
+    assert cal.model.kind in ("bspline", "hybrid")  # no parametric model represents this lens
+    assert len(cal.views) == n + 4 and all(v.n_points > 0 for v in cal.views)
+    design = cal.diagnostics.extra["design"]  # of the fit to every view
+    assert design["rank"] == design["n_controls"] and design["intervals"] == cal.settings["intervals_used"]
+    assert cal.diagnostics.solver.iterations <= 10  # from where the decision left it, not from scratch
+    assert cal.metrics.rmse_axis < 1.05 * noise_floor(0.3, cal.diagnostics.solver.n_unknowns, cal.metrics.n_points)
+    assert evaluate(cal, s.holdout)["rmse"] < 0.08

@@ -236,10 +236,17 @@ def print_camera(cam: dict) -> None:
     table(["parameter", "value", "± one standard deviation", "unit", "note"],
           [(p["name"], f"{p['value']:.6g}", "—" if p["std"] is None else f"{p['std']:.2g}", p["unit"], p.get("note", ""))
            for p in cam["parameters"]])
-    fov = cam["field_of_view_deg"]
-    print("field of view: " + ", ".join(f"{k} {'beyond the lens' if v is None else f'{v:.1f} deg'}"
-                                        for k, v in fov.items()))
+    far = cam.get("no_ray_beyond_px") or {}
+    print("field of view: " + ", ".join(_fov_part(k, v, far.get(k)) for k, v in cam["field_of_view_deg"].items()))
     print(f"verdict: {cam['verdict']['text']}")
+
+
+def _fov_part(line: str, degrees: float | None, no_ray_px: float | None) -> str:
+    if degrees is not None:
+        return f"{line} {degrees:.1f} deg"
+    if no_ray_px is not None:
+        return f"{line}: no ray past {no_ray_px:.0f} px from the principal point"
+    return f"{line}: past the model's reach"
 
 
 def print_choice(choice: ChoiceReport) -> None:

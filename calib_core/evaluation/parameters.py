@@ -155,18 +155,30 @@ def field_summary(cal: Calibration) -> dict[str, Any] | None:
     return None
 
 
+def _lines(image_size) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The image's horizontal and vertical midlines and its diagonal, FOV_SAMPLES
+    pixels each (name → (FOV_SAMPLES, 2)), and all of them stacked."""
+    w, h = image_size
+    ends = {"horizontal": ((0.0, (h - 1) / 2), (w - 1.0, (h - 1) / 2)),
+            "vertical": (((w - 1) / 2, 0.0), ((w - 1) / 2, h - 1.0)),
+            "diagonal": ((0.0, 0.0), (w - 1.0, h - 1.0))}
+    t = np.linspace(0.0, 1.0, FOV_SAMPLES)[:, None]
+    lines = {name: np.asarray(a) + t * (np.asarray(b) - np.asarray(a)) for name, (a, b) in ends.items()}
+    return lines, np.concatenate(list(lines.values()))
+
+
+def _line_rays(cal: Calibration) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The lines (``_lines``) and their rays (3, FOV_SAMPLES, 3), NaN where none."""
+    lines, pixels = _lines(cal.image_size)
+    with np.errstate(all="ignore"):
+        return lines, cal.rays(pixels).reshape(len(lines), FOV_SAMPLES, 3)
+
+
 def field_of_view(cal: Calibration) -> dict[str, float | None]:
     """Degrees swept by the model's rays along the horizontal and vertical
     midlines and the diagonal of the image; None where some pixel on the way
-    has no ray (past the model's reach)."""
-    w, h = cal.image_size
-    lines = {"horizontal": ((0.0, (h - 1) / 2), (w - 1.0, (h - 1) / 2)),
-             "vertical": (((w - 1) / 2, 0.0), ((w - 1) / 2, h - 1.0)),
-             "diagonal": ((0.0, 0.0), (w - 1.0, h - 1.0))}
-    t = np.linspace(0.0, 1.0, FOV_SAMPLES)[:, None]
-    pixels = np.concatenate([np.asarray(a) + t * (np.asarray(b) - np.asarray(a)) for a, b in lines.values()])
-    with np.errstate(all="ignore"):
-        rays = cal.rays(pixels).reshape(len(lines), FOV_SAMPLES, 3)
+    has no ray (past the model's reach: ``no_ray_beyond``)."""
+    lines, rays = _line_rays(cal)
     out: dict[str, float | None] = {}
     for name, r in zip(lines, rays, strict=True):
         if not np.all(np.isfinite(r)):
@@ -175,6 +187,30 @@ def field_of_view(cal: Calibration) -> dict[str, float | None]:
         steps = np.arccos(np.clip(np.sum(r[1:] * r[:-1], axis=1), -1.0, 1.0))
         out[name] = float(np.degrees(steps.sum()))
     return out
+
+
+def no_ray_beyond(cal: Calibration) -> dict[str, float]:
+    """For each of the image's midlines and its diagonal on which some pixel
+    has no ray under the model, how far from the principal point (px) the
+    nearest such pixel lies. A model whose distortion turns back (a rational
+    model past its fold, a Kannala–Brandt polynomial past its peak) maps no
+    ray there: right for a circular fisheye's dark corners, wrong where the
+    lens lights the pixels."""
+    lines, rays = _line_rays(cal)
+    centre = cal.model.intrinsics[2:4]
+    out: dict[str, float] = {}
+    for (name, pixels), r in zip(lines.items(), rays, strict=True):
+        none = ~np.all(np.isfinite(r), axis=1)
+        if none.any():
+            out[name] = float(np.min(np.hypot(*(pixels[none] - centre).T)))
+    return out
+
+
+def lit_radius(cal: Calibration) -> float | None:
+    """How far from the principal point (px) the lens is known to light the
+    image: the farthest corner the calibration used (its coverage hull)."""
+    hull = np.asarray(cal.diagnostics.coverage_hull or [], dtype=float).reshape(-1, 2)
+    return float(np.max(np.hypot(*(hull - cal.model.intrinsics[2:4]).T))) if len(hull) else None
 
 
 def describe_camera(cal: Calibration, data: Data, poses: np.ndarray) -> dict[str, Any]:
@@ -198,6 +234,7 @@ def describe_camera(cal: Calibration, data: Data, poses: np.ndarray) -> dict[str
     out["parameters"] = parameter_table(cal.model, cov)
     out["field"] = field_summary(cal)
     out["field_of_view_deg"] = field_of_view(cal)
+    out["no_ray_beyond_px"] = no_ray_beyond(cal)
     # the corners' own rays (board points through their fitted poses): how far off axis the data reaches,
     # the one angle a circular fisheye's frame (no ray at its black corners) still has
     pc = camera.transform(poses, data.view_index, data.object_points)
@@ -218,7 +255,7 @@ def describe_camera(cal: Calibration, data: Data, poses: np.ndarray) -> dict[str
                    "measure": "worst-direction standard deviation of a projected direction (boards frame), "
                               "over the image cells with an observed corner nearby"}
     out["projection_uncertainty"] = unc
-    out["verdict"] = verdict(_fit_rmse(cal), unc)
+    out["verdict"] = verdict(_fit_rmse(cal), unc, out["no_ray_beyond_px"], lit_radius(cal))
     return out
 
 
@@ -226,12 +263,13 @@ def describe_without_corners(cal: Calibration) -> dict[str, Any]:
     """The ``diagnostics.camera`` block from the calibration alone: without the
     corners it was fitted to there is no covariance, so no ± and no projection
     uncertainty (the calibration file holds neither)."""
+    no_ray = no_ray_beyond(cal)
     return {"model": model_in_words(cal.model), "chosen": how_chosen(cal),
             "fitted_parameters": fitted_parameter_count(cal.model),
             "parameters": parameter_table(cal.model, None), "field": field_summary(cal),
-            "field_of_view_deg": field_of_view(cal), "projection_uncertainty": None,
+            "field_of_view_deg": field_of_view(cal), "no_ray_beyond_px": no_ray, "projection_uncertainty": None,
             "uncertainty_error": "no standard deviations: they need the corners the calibration was fitted to",
-            "verdict": verdict(_fit_rmse(cal), None)}
+            "verdict": verdict(_fit_rmse(cal), None, no_ray, lit_radius(cal))}
 
 
 def _fit_rmse(cal: Calibration) -> float:

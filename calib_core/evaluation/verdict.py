@@ -51,9 +51,13 @@ def _grade(value: float, limits: tuple[float, float], higher_is_better: bool = F
     return GRADES[0] if value <= good else GRADES[1] if value <= fair else GRADES[2]
 
 
-def verdict(rmse: float, uncertainty: dict[str, Any] | None) -> dict[str, Any]:
-    """``{"grade", "text", "advice"}`` from the rms (px per point) and the
-    projection-uncertainty summary (``parameters.describe_camera``'s)."""
+def verdict(rmse: float, uncertainty: dict[str, Any] | None, no_ray: dict[str, float] | None = None,
+            lit: float | None = None) -> dict[str, Any]:
+    """``{"grade", "text", "advice"}`` from the rms (px per point), the
+    projection-uncertainty summary (``parameters.describe_camera``'s) and
+    where the model has no ray (``no_ray``: line → px from the principal
+    point, ``parameters.no_ray_beyond``) against how far out the lens is
+    known to light the image (``lit``, px: the farthest corner used)."""
     fit = _grade(rmse, RMSE_LIMITS)
     advice: list[str] = []
     if fit == "poor":
@@ -61,13 +65,18 @@ def verdict(rmse: float, uncertainty: dict[str, Any] | None) -> dict[str, Any]:
                       "or try a model with a field")
     elif fit == "fair":
         advice.append("the rms is above what a sharp board gives: look for views with large errors")
+    reach = _reach(no_ray or {}, lit)
+    if reach:
+        advice.append(reach)
     if uncertainty is None:
-        return {"grade": fit, "text": f"{rmse:.2f} px rms: {fit}" + "".join(f"; {a}" for a in advice),
+        grade = GRADES[max(GRADES.index(fit), GRADES.index(_reach_grade(no_ray or {}, lit)))]
+        return {"grade": grade, "text": f"{rmse:.2f} px rms: {grade}" + "".join(f"; {a}" for a in advice),
                 "advice": advice}
     unc = float(uncertainty["median_px"])
     known = _grade(unc, UNCERTAINTY_LIMITS)
     spread = _grade(float(uncertainty["covered_share"]), COVERED_LIMITS, higher_is_better=True)
-    grade = GRADES[max(GRADES.index(fit), GRADES.index(known), GRADES.index(spread))]
+    grade = GRADES[max(GRADES.index(fit), GRADES.index(known), GRADES.index(spread),
+                       GRADES.index(_reach_grade(no_ray or {}, lit)))]
     if known != "good":
         advice.append("the model is loosely determined by these views: add views, with the board tilted more")
     regions = uncertainty.get("uncovered_regions") or []
@@ -75,6 +84,25 @@ def verdict(rmse: float, uncertainty: dict[str, Any] | None) -> dict[str, Any]:
         advice.append(f"add views at the {_and(regions)} to cover the rest")
     text = f"{rmse:.2f} px rms, {unc:.2f} px projection uncertainty over the covered image: {grade}"
     return {"grade": grade, "text": text + "".join(f"; {a}" for a in advice), "advice": advice}
+
+
+def _reach(no_ray: dict[str, float], lit: float | None) -> str:
+    """The advice for pixels the model gives no ray to, or ""."""
+    if not no_ray:
+        return ""
+    name = min(no_ray, key=no_ray.get)
+    where = f"farther than {no_ray[name]:.0f} px from the principal point (along the image's {name})"
+    if lit is not None and lit > no_ray[name]:
+        return (f"the model gives no ray to pixels {where}, where corners show the lens lights the image "
+                f"(up to {lit:.0f} px): its distortion turns back there, so undistorting the whole image with it "
+                "is wrong; a Kannala-Brandt model or a field over it reaches further")
+    return (f"the model gives no ray to pixels {where}: right if the lens leaves them dark, otherwise do not "
+            "undistort the whole image with it")
+
+
+def _reach_grade(no_ray: dict[str, float], lit: float | None) -> str:
+    """"fair" at best where the model gives no ray to pixels the lens is known to light."""
+    return "fair" if no_ray and lit is not None and lit > min(no_ray.values()) else "good"
 
 
 def _and(names: list[str]) -> str:

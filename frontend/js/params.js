@@ -61,7 +61,9 @@ export function matrixBlock(calibration) {
 
 export function fovLine(camera) {
   const fov = camera.field_of_view_deg || {};
-  const part = (name) => fov[name] == null ? `${name}: past the lens's image` : `${fov[name].toFixed(1)}° ${name}`;
+  const far = camera.no_ray_beyond_px || {};
+  const part = (name) => fov[name] != null ? `${fov[name].toFixed(1)}° ${name}`
+    : `${name}: no ray past ${far[name] != null ? `${far[name].toFixed(0)} px from the principal point` : "the model's reach"}`;
   const reach = camera.max_corner_angle_deg != null
     ? ` The corners reach ${camera.max_corner_angle_deg.toFixed(1)}° off axis.` : "";
   return el("p", { id: "camera-fov" }, el("strong", {}, "Field of view: "),

@@ -73,7 +73,9 @@ def assert_card_equals_json(page, doc: dict) -> dict:
         assert next(p for p in camera["parameters"] if p["name"] == name)["value"] == k[name]
     fov = page.text_content("#camera-fov")
     for name, value in camera["field_of_view_deg"].items():
-        assert (f"{value:.1f}° {name}" if value is not None else f"{name}: past the lens's image") in fov
+        far = camera["no_ray_beyond_px"].get(name)
+        assert (f"{value:.1f}° {name}" if value is not None else
+                f"{name}: no ray past {far:.0f} px from the principal point") in fov
     assert page.text_content("#verdict-text") == camera["verdict"]["text"]
     assert camera["model"] in page.text_content("#camera-model")
     return camera

@@ -3,7 +3,13 @@ import numpy as np
 import pytest
 
 from calib_core import Calibration, calibrate, synth
-from calib_core.evaluation.parameters import field_of_view, model_in_words, parameter_table
+from calib_core.evaluation.parameters import (
+    describe_without_corners,
+    field_of_view,
+    model_in_words,
+    no_ray_beyond,
+    parameter_table,
+)
 from calib_core.evaluation.uncertainty import model_covariance
 from calib_core.evaluation.verdict import uncovered_regions, verdict
 from calib_core.fitting.solve import Data, SolveSettings, levenberg_marquardt
@@ -56,6 +62,29 @@ def test_field_of_view_is_the_models_own_angle_across_the_image():
     equidistant = Calibration(FisheyeModel([300.0, 300.0, (w - 1) / 2, (h - 1) / 2, 0.0], [0, 0, 0, 0]), (w, h), "fisheye")
     fov = field_of_view(equidistant)
     assert fov["horizontal"] == pytest.approx(np.degrees(1000 / 300.0), rel=1e-3) and fov["horizontal"] > 180
+
+
+def test_a_model_whose_distortion_turns_back_inside_the_image_is_called_out():
+    """A barrel polynomial r(1 + k1 r²) peaks at r = 1/√(−3 k1): past that pixel
+    radius it maps no ray, and two rays to the pixels short of it. Where corners
+    show the lens lights the image beyond it, undistorting the whole image with
+    this model is wrong: the verdict says so and grades it fair at best; where
+    no corner reached, it may be a circular fisheye's dark corner, and says that."""
+    w, h, f, k1 = 1001, 801, 500.0, -0.5
+    model = OpenCVModel([f, f, (w - 1) / 2, (h - 1) / 2, 0.0], [k1, 0, 0, 0, 0])
+    cal = Calibration(model, (w, h), "zhang")
+    peak = f * (2 / 3) * np.sqrt(1 / (-3 * k1))  # r_d at r = 1/√(−3 k1), in pixels
+    no_ray = no_ray_beyond(cal)
+    assert set(no_ray) == {"horizontal", "vertical", "diagonal"}  # 272 px: inside every line's half
+    assert min(no_ray.values()) == pytest.approx(peak, abs=2.0)
+    assert field_of_view(cal)["diagonal"] is None
+    dark = describe_without_corners(cal)["verdict"]
+    assert "right if the lens leaves them dark" in dark["text"]
+    cal.diagnostics.coverage_hull = [[100.0, 100.0], [900.0, 100.0], [900.0, 700.0], [100.0, 700.0]]
+    lit = describe_without_corners(cal)["verdict"]
+    assert "lights the image" in lit["text"] and "Kannala-Brandt" in lit["text"] and lit["grade"] != "good"
+    barrel = Calibration(OpenCVModel(model.intrinsics, [-0.05, 0, 0, 0, 0]), (w, h), "zhang")  # peaks past the image
+    assert no_ray_beyond(barrel) == {} and "no ray" not in describe_without_corners(barrel)["verdict"]["text"]
 
 
 def test_parameter_names_follow_the_model():

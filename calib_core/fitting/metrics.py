@@ -66,30 +66,48 @@ def design_diagnostics(design: sp.csr_matrix, weights: np.ndarray, regulariser: 
     }
 
 
+CHUNK_ROWS = 256  # rows reduced together: the stacked factors stay a few per column, the padding small
+
+
 def singular_values(design: sp.csr_matrix) -> np.ndarray:
     """The singular values of a sparse design whose rows each touch a few
     columns (a B-spline field's: the 16 controls of one knot cell), as a
     dense SVD gives them, for a fraction of its N·n² cost.
 
-    Rows that start at the same column touch the same few: each such group is
-    reduced to its triangular QR factor, and the stacked factors have the
-    design's singular values (B = Q R with Q orthogonal), at most a few rows
-    per column. The squared route, BᵀB's eigenvalues, loses the small ones
-    the rank and the condition number are about."""
+    Rows that start at the same column touch the same few. Each such group,
+    in chunks of at most CHUNK_ROWS rows, is reduced to its triangular QR
+    factor (all chunks at once, zero-padded to one shape), and the stacked
+    factors have the design's singular values (B = Q R with Q orthogonal).
+    The squared route, BᵀB's eigenvalues, loses the small ones the rank and
+    the condition number are about."""
     design = sp.csr_matrix(design)
-    lengths = np.diff(design.indptr)
-    rows = np.flatnonzero(lengths > 0)
+    design.sum_duplicates()
+    n = design.shape[1]
+    rows = np.flatnonzero(np.diff(design.indptr))
     if not len(rows):
         return np.zeros(min(design.shape))
     first = np.minimum.reduceat(design.indices, design.indptr[rows])
-    order = rows[np.argsort(first, kind="stable")]
-    bounds = np.flatnonzero(np.diff(np.sort(first))) + 1
-    factors = []
-    for group in np.split(order, bounds):
-        block = design[group]
-        cols = np.unique(block.indices)
-        r = np.linalg.qr(block[:, cols].toarray(), mode="r")
-        stacked = np.zeros((len(r), design.shape[1]))
-        stacked[:, cols] = r
-        factors.append(stacked)
-    return np.linalg.svd(np.vstack(factors), compute_uv=False)
+    order = np.argsort(first, kind="stable")
+    group = np.cumsum(np.r_[0, np.diff(first[order]) != 0])  # of each row, in ``order``
+    # each row's chunk: its group split every CHUNK_ROWS rows
+    starts = np.r_[0, np.flatnonzero(np.diff(group)) + 1]
+    rank = np.arange(len(order)) - np.repeat(starts, np.diff(np.r_[starts, len(order)]))
+    chunk_key = group * (len(order) // CHUNK_ROWS + 1) + rank // CHUNK_ROWS
+    chunk = np.unique(chunk_key, return_inverse=True)[1]
+    slot = rank % CHUNK_ROWS
+    # every nonzero: its chunk, its row's slot in the chunk, its column's place among the chunk's columns
+    sub = design[rows[order]]
+    nz_chunk = np.repeat(chunk, np.diff(sub.indptr))
+    nz_slot = np.repeat(slot, np.diff(sub.indptr))
+    keys, inverse = np.unique(nz_chunk.astype(np.int64) * n + sub.indices, return_inverse=True)
+    key_chunk = keys // n
+    key_place = np.arange(len(keys)) - np.searchsorted(key_chunk, key_chunk)  # its rank among its chunk's columns
+    width = int(np.max(key_place)) + 1
+    blocks = np.zeros((chunk.max() + 1, int(slot.max()) + 1, width))
+    blocks[nz_chunk, nz_slot, key_place[inverse]] = sub.data
+    factors = np.linalg.qr(blocks, mode="r")  # (chunks, k, width)
+    columns = np.full((len(factors), width), n)  # a padding column lands in an extra last column, dropped
+    columns[key_chunk, key_place] = keys % n
+    stacked = np.zeros((*factors.shape[:2], n + 1))
+    np.put_along_axis(stacked, np.broadcast_to(columns[:, None, :], factors.shape), factors, axis=2)
+    return np.linalg.svd(stacked[:, :, :n].reshape(-1, n), compute_uv=False)

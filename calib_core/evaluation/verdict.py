@@ -59,24 +59,25 @@ def verdict(rmse: float, uncertainty: dict[str, Any] | None, no_ray: dict[str, f
     point, ``parameters.no_ray_beyond``) against how far out the lens is
     known to light the image (``lit``, px: the farthest corner used)."""
     fit = _grade(rmse, RMSE_LIMITS)
+    no_ray = no_ray or {}
     advice: list[str] = []
     if fit == "poor":
         advice.append("the corners are far from the model: check the board size and the photos' corners, "
                       "or try a model with a field")
     elif fit == "fair":
         advice.append("the rms is above what a sharp board gives: look for views with large errors")
-    reach = _reach(no_ray or {}, lit)
+    reach = _reach(no_ray, lit)
     if reach:
         advice.append(reach)
     if uncertainty is None:
-        grade = GRADES[max(GRADES.index(fit), GRADES.index(_reach_grade(no_ray or {}, lit)))]
+        grade = GRADES[max(GRADES.index(fit), GRADES.index(_reach_grade(no_ray, lit)))]
         return {"grade": grade, "text": f"{rmse:.2f} px rms: {grade}" + "".join(f"; {a}" for a in advice),
                 "advice": advice}
     unc = float(uncertainty["median_px"])
     known = _grade(unc, UNCERTAINTY_LIMITS)
     spread = _grade(float(uncertainty["covered_share"]), COVERED_LIMITS, higher_is_better=True)
     grade = GRADES[max(GRADES.index(fit), GRADES.index(known), GRADES.index(spread),
-                       GRADES.index(_reach_grade(no_ray or {}, lit)))]
+                       GRADES.index(_reach_grade(no_ray, lit)))]
     if known != "good":
         advice.append("the model is loosely determined by these views: add views, with the board tilted more")
     regions = uncertainty.get("uncovered_regions") or []
@@ -90,7 +91,7 @@ def _reach(no_ray: dict[str, float], lit: float | None) -> str:
     """The advice for pixels the model gives no ray to, or ""."""
     if not no_ray:
         return ""
-    name = min(no_ray, key=no_ray.get)
+    name = min(no_ray, key=lambda k: no_ray[k])
     where = f"farther than {no_ray[name]:.0f} px from the principal point (along the image's {name})"
     if lit is not None and lit > no_ray[name]:
         return (f"the model gives no ray to pixels {where}, where corners show the lens lights the image "

@@ -105,7 +105,8 @@ def singular_values(design: sp.csr_matrix) -> np.ndarray:
     width = int(np.max(key_place)) + 1
     blocks = np.zeros((chunk.max() + 1, int(slot.max()) + 1, width))
     blocks[nz_chunk, nz_slot, key_place[inverse]] = sub.data
-    factors = np.linalg.qr(blocks, mode="r")  # (chunks, k, width)
+    # (chunks, k, width): mode "r" returns R alone, which numpy's stubs do not say
+    factors: np.ndarray = np.linalg.qr(blocks, mode="r")  # type: ignore[assignment]
     columns = np.full((len(factors), width), n)  # a padding column lands in an extra last column, dropped
     columns[key_chunk, key_place] = keys % n
     stacked = np.zeros((*factors.shape[:2], n + 1))

@@ -107,7 +107,7 @@ def _on_all_views(spec: Spec, fit: Fit, core_fit: Fit | None, data: Data, image_
     knots then follow the core's residuals on every view (kept from the
     sample, they predicted views it had not seen worse: docs/model-choice.md,
     "Speed, and how it scales")."""
-    if spec.core is None or spec.field is None:
+    if spec.core is None or spec.field is None or core_fit is None:
         return _refined(fit, data, progress)
     core = _refined(core_fit, data, scaled(progress, 0.0, 0.3))
     grid = {"intervals": tuple(fit.settings["intervals_used"]), "lambda_smooth": float(fit.settings["lambda_smooth"])}

@@ -514,6 +514,7 @@ def field_design(model: BSplineModel | HybridModel, poses: np.ndarray, data: Dat
     reg_rows = sp.vstack([np.sqrt(model.lambda_reg) * sp.identity(field.n_controls),
                           np.sqrt(model.lambda_smooth) * field.bending()])
     breaks = model.knot_breaks()
+    assert breaks is not None  # a field has knots
     return design_diagnostics(field.design(samples).matrix(field.n_controls), weights / weights.mean(axis=0),
                               reg_rows, breaks[0], breaks[1], samples)
 

@@ -72,8 +72,9 @@ WIDE_CANDIDATES = (Spec("fisheye", "Kannala-Brandt model", "fisheye", None),
 def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit:
     sample = data if data.n_views <= s.decision_views else spread_views(data, s.decision_views)
     init = initialise(sample, image_size)  # cached, before the candidates share it from two threads
-    seen = init.model.rays(data.image_points)[:, 2] > np.cos(np.radians(PINHOLE_MAX_ANGLE_DEG))
-    wide = not seen.all()
+    with np.errstate(invalid="ignore"):  # a pixel with no ray under the initial camera is not known to be past
+        past = init.model.rays(data.image_points)[:, 2] < np.cos(np.radians(PINHOLE_MAX_ANGLE_DEG))
+    wide = bool(past.any())
     specs = WIDE_CANDIDATES if wide else CANDIDATES
     share = 1.0 if sample is data else 0.8
     fits, why_not, screen = _fit_candidates(specs, sample, image_size, scaled(progress, 0.0, 0.8 * share))
@@ -86,7 +87,7 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
                        f"of it better than no field (it did{'' if screen.pays else ' not'}: "
                        f"{screen.gain:.2g} ± {screen.standard_error:.2g} px² per corner)")
     if wide:
-        choice.how += f"; {int((~seen).sum())} corners lie past the pinhole's reach, so only models that reach them ran"
+        choice.how += f"; {int(past.sum())} corners lie past the pinhole's reach, so only models that reach them ran"
     if sample is not data:
         choice.how += f"; decided on {sample.n_views} of the {data.n_views} views"
     spec = specs[choice.chosen]

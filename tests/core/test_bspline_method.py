@@ -206,3 +206,17 @@ def test_a_field_decided_on_a_spread_of_views_is_fitted_to_every_view_from_there
     assert cal.diagnostics.solver.iterations <= 10  # from where the decision left it, not from scratch
     assert cal.metrics.rmse_axis < 1.05 * noise_floor(0.3, cal.diagnostics.solver.n_unknowns, cal.metrics.n_points)
     assert evaluate(cal, s.holdout)["rmse"] < 0.08
+
+
+@pytest.mark.slow
+def test_a_large_wide_set_reads_every_views_rays_for_the_pinholes_reach():
+    from calib_core import synth
+    from calib_core.methods.auto import AutoSettings
+
+    n = AutoSettings().decision_views
+    s = synth.generate("fisheye200", 0.3, 1, n_views=n + 6)
+    cal = calibrate(s.train)
+    how = cal.diagnostics.model_choice.how
+    assert f"decided on {n} of the {n + 6} views" in how and "past the pinhole's reach" in how
+    assert cal.model.kind in ("fisheye", "hybrid") and all(v.n_points > 0 for v in cal.views)
+    assert evaluate(cal, s.holdout)["rmse"] < 0.05

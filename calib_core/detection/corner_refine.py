@@ -6,14 +6,31 @@ import functools
 
 import cv2
 import numpy as np
+from numba import njit
 
 SUBPIX = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 40, 1e-3)
 
 
 def nearest_corner(e_col: np.ndarray, e_row: np.ndarray) -> np.ndarray:
-    """Distance (N,) px to the nearest other lattice corner, diagonals included: on a steeply
-    sheared view the diagonal neighbour across the acute angle is much nearer than a side."""
-    return np.min([np.linalg.norm(v, axis=-1) for v in (e_col, e_row, e_col + e_row, e_col - e_row)], axis=0)
+    """Distance (...) px to the nearest other lattice corner, diagonals included, for local
+    steps e_col, e_row (..., 2) (NaN where a step is): on a steeply sheared view the diagonal
+    neighbour across the acute angle is much nearer than a side."""
+    shape = np.shape(e_col)[:-1]
+    flat = [np.ascontiguousarray(e, dtype=np.float64).reshape(-1, 2) for e in (e_col, e_row)]
+    return _nearest_corner(*flat).reshape(shape)
+
+
+@njit(cache=True, nogil=True)
+def _nearest_corner(e_col, e_row):  # pragma: no cover (compiled; the same numbers as np.linalg.norm, np.min)
+    out = np.empty(len(e_col))
+    for i in range(len(e_col)):
+        cx, cy, rx, ry = e_col[i, 0], e_col[i, 1], e_row[i, 0], e_row[i, 1]
+        m = np.sqrt(cx * cx + cy * cy)
+        for vx, vy in ((rx, ry), (cx + rx, cy + ry), (cx - rx, cy - ry)):
+            d = np.sqrt(vx * vx + vy * vy)
+            m = d if np.isnan(d) or d < m else m   # NaN wins, as in np.min
+        out[i] = m
+    return out
 
 
 def window_holds_one_corner(spacing: np.ndarray) -> np.ndarray:
@@ -143,32 +160,57 @@ def _saddle_iterate(smooth: np.ndarray, pts: np.ndarray, half: np.ndarray) -> tu
     ends = np.append(starts[1:], n)
     (dx, dy), fits = _saddle_fits(tuple(int(h) for h in sizes))
     p = pts[order].astype(np.float64)
-    lim = half_s.astype(np.float64)[:, None]
+    lim = half_s.astype(np.float64)
     coef = np.empty((6, n))
     taken = np.ones(n, bool)
+    step = np.zeros((n, 2))
+    dd = np.empty(n)
     mx, my = np.empty((n, dx.size), np.float32), np.empty((n, dx.size), np.float32)
     for _ in range(SADDLE_STEPS):
-        # x and y maps apart, (n, M) each: a broadcast over a last axis of 2 is ten times slower;
-        # summed in float64 and rounded once into float32, in place (a float64 copy each cost as much)
-        np.add(p[:, :1], dx, out=mx, casting="unsafe")
-        np.add(p[:, 1:], dy, out=my, casting="unsafe")
+        _sample_maps(p, dx, dy, mx, my)
         zt = cv2.remap(smooth, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).T.astype(np.float64)
         for fit, s0, s1 in zip(fits, starts, ends, strict=True):
             for c0 in range(s0, s1, BLAS_COLUMNS):
                 c1 = min(c0 + BLAS_COLUMNS, s1)
                 coef[:, c0:c1] = fit @ zt[:, c0:c1]
-        a, b, c, d, e, _ = coef
-        dd = 4 * a * c - b * b
-        with np.errstate(all="ignore"):
-            step = np.stack([(b * e - 2 * c * d) / dd, (b * d - 2 * a * e) / dd], 1)
-        ok = np.all(np.isfinite(step) & (np.abs(step) <= lim), axis=1)
-        taken &= ok
-        step = np.where(ok[:, None], step, 0.0)
-        p = p + step
-    settled = taken & (np.linalg.norm(step, axis=1) <= SETTLED)
+        _saddle_step(coef, lim, p, taken, step, dd)
+    settled = taken & (np.sqrt(step[:, 0] * step[:, 0] + step[:, 1] * step[:, 1]) <= SETTLED)
     out, det, sure = np.empty_like(p), np.empty(n), np.empty(n, bool)
     out[order], det[order], sure[order] = p, dd, settled
     return out, det, sure
+
+
+# A step's arithmetic on the fitted coefficients is compiled: as array expressions it was a dozen
+# NumPy calls a step on a few dozen corners, each holding the GIL. The kernels do those
+# expressions' floating-point operations in their order, so every step is the same to the last bit.
+
+
+@njit(cache=True, nogil=True)
+def _sample_maps(p, dx, dy, mx, my):  # pragma: no cover (compiled)
+    """Into mx, my (N, M) float32: the pixels of each corner's window, p (N, 2) plus the offsets
+    dx, dy (M,), summed in float64 and rounded once."""
+    for i in range(len(p)):
+        for m in range(len(dx)):
+            mx[i, m] = p[i, 0] + dx[m]
+            my[i, m] = p[i, 1] + dy[m]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")  # a flat surface divides by 0: inf/nan, refused below
+def _saddle_step(coef, lim, p, taken, step, dd):  # pragma: no cover (compiled)
+    """One re-centred step of every corner from the surfaces' coefficients coef (6, N): the
+    Hessian determinants into dd (N,), the step to the saddle into step (N, 2) (0 where refused:
+    not finite, or longer than lim (N,) either way), p (N, 2) moved by it, taken (N,) cleared
+    where refused."""
+    for i in range(len(p)):
+        a, b, c, d, e = coef[0, i], coef[1, i], coef[2, i], coef[3, i], coef[4, i]
+        dd[i] = 4 * a * c - b * b
+        sx = (b * e - 2 * c * d) / dd[i]
+        sy = (b * d - 2 * a * e) / dd[i]
+        ok = np.isfinite(sx) and np.isfinite(sy) and abs(sx) <= lim[i] and abs(sy) <= lim[i]
+        taken[i] = taken[i] and ok
+        step[i, 0], step[i, 1] = (sx, sy) if ok else (0.0, 0.0)
+        p[i, 0] += step[i, 0]
+        p[i, 1] += step[i, 1]
 
 
 @functools.lru_cache(maxsize=64)

@@ -84,9 +84,9 @@ def image_paths(items: Iterable[str | Path]) -> list[Path]:
 # A pool's workers come from a fresh interpreter that imports OpenCV and the
 # detector (0.7 s of CPU on these machines) before the first image, where a thread
 # starts at once: a set is detected on threads of this process unless it is long
-# enough for processes to pay (the Python of growth and checks holds the GIL, about
-# a third of an image's time on OpenCV's 9x6 photos; OpenCV's detectors release it).
-POOL_PAYS_AFTER = 1.5  # seconds of CPU left after the first image
+# enough for processes to pay (the Python of growth and checks holds the GIL between
+# its compiled kernels; OpenCV's detectors and the kernels release it).
+POOL_PAYS_AFTER = 1.5  # seconds of CPU left after the first image (its thread's CPU times the images left)
 
 
 def detect_images(paths, board: BoardSpec | Target, progress: Callable[[int, int], None] | None = None,
@@ -150,14 +150,24 @@ def _run_all(files, names, board, progress, workers, model=None) -> list[ImageRe
             progress(done, total)
 
     jobs = [_job(files[k], board, names[k], model) for k in range(total)]
-    # CPU time, not wall: on a busy machine the wall clock would start a pool for a set
-    # this process detects faster than the pool's start.
-    start = time.process_time()
-    finished(0, _call(jobs[0]))
-    left = (time.process_time() - start) * (total - 1)
-    if n > 1 and left > POOL_PAYS_AFTER:
-        _on_processes(jobs, [k for k in range(total) if results[k] is None], n, finished)
-    _on_threads(jobs, [k for k in range(total) if results[k] is None], n, finished)
+    if n == 1:
+        for k in range(total):
+            finished(k, _call(jobs[k]))
+        return results  # type: ignore[return-value]
+    with cf.ThreadPoolExecutor(n, thread_name_prefix="freecal-detect") as threads:
+        # The first image's CPU decides on a pool; the next n - 1 images start beside it rather
+        # than wait (a set of a few images took a round of one image's time longer).
+        first = threads.submit(_timed_call, jobs[0])
+        running = {threads.submit(_call, jobs[k]): k for k in range(1, n)}
+        result, cpu = first.result()
+        finished(0, result)
+        rest = list(range(n, total))
+        if rest and cpu * (total - 1) > POOL_PAYS_AFTER:
+            _on_processes(jobs, rest, n, finished)
+            rest = [k for k in rest if results[k] is None]
+        running.update({threads.submit(_call, jobs[k]): k for k in rest})
+        for fut in cf.as_completed(running):
+            finished(running[fut], fut.result())
     return results  # type: ignore[return-value]
 
 
@@ -166,16 +176,13 @@ def _call(job: tuple) -> ImageResult:
     return fn(*args)
 
 
-def _on_threads(jobs: list[tuple], todo: list[int], n: int, finished: Callable[[int, ImageResult], None]) -> None:
-    """Jobs ``todo`` on n threads of this process, each reported by finished(k, result) in this thread."""
-    if n == 1 or len(todo) < 2:
-        for k in todo:
-            finished(k, _call(jobs[k]))
-        return
-    with cf.ThreadPoolExecutor(n, thread_name_prefix="freecal-detect") as pool:
-        futures = {pool.submit(_call, jobs[k]): k for k in todo}
-        for fut in cf.as_completed(futures):
-            finished(futures[fut], fut.result())
+def _timed_call(job: tuple) -> tuple[ImageResult, float]:
+    """``_call(job)`` and the CPU seconds of its thread: CPU, not wall, so that on a busy machine
+    the wall clock does not start a pool for a set this process detects faster than the pool's
+    start; its thread's, as other images run beside it."""
+    start = time.thread_time()
+    result = _call(job)
+    return result, time.thread_time() - start
 
 
 def _on_processes(jobs: list[tuple], todo: list[int], n: int, finished: Callable[[int, ImageResult], None]) -> None:

@@ -32,6 +32,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from .quantiles import percentiles
+
+_DECILES = np.array([10, 90]) / 100   # the 10th and 90th percentiles, as np.percentile divides them
+
 
 def right_handed(grid: np.ndarray) -> np.ndarray:
     """Grid (h, w, 2) with columns reversed if it is mirrored in the image."""
@@ -61,7 +65,7 @@ def cell_brightness_sign(grid: np.ndarray, gray: np.ndarray) -> int:
     even, odd = vals[(i + j) % 2 == 0], vals[(i + j) % 2 == 1]
     if even.size == 0 or odd.size == 0:
         return 0
-    d = float(np.median(even)) - float(np.median(odd))
+    d = float(_median(even.astype(np.float64), 0)) - float(_median(odd.astype(np.float64), 0))  # uint8 levels
     return 0 if abs(d) < 8 else (1 if d > 0 else -1)
 
 
@@ -91,9 +95,9 @@ def gap_strides(grid: np.ndarray, gray: np.ndarray) -> tuple[np.ndarray, np.ndar
         return ones
     fractions = (0.2, 0.25, 0.5, 0.75, 0.8)
     st = [(s, t) for s in fractions for t in fractions]
-    q = dict(zip(st, _samples(gray, grid, st), strict=True))
-    allv = np.concatenate([v.ravel() for v in q.values()])
-    lo, hi = np.percentile(allv, [10, 90])
+    samples = _samples(gray, grid, st)
+    q = dict(zip(st, samples, strict=True))
+    lo, hi = percentiles(samples.ravel(), _DECILES)
     contrast = hi - lo
     if contrast < 16:
         return ones
@@ -134,7 +138,7 @@ def lattice_score(grid: np.ndarray, gray: np.ndarray) -> float:
     if h < 2 or w < 2:
         return 0.0
     q = _samples(gray, grid, [(s, t) for s in (0.25, 0.75) for t in (0.25, 0.75)])  # (4, h-1, w-1)
-    lo, hi = np.percentile(q, [10, 90])
+    lo, hi = percentiles(q.ravel(), _DECILES)
     if hi - lo < 16:
         return 0.0
     uniform = q.max(0) - q.min(0) < 0.5 * (hi - lo)

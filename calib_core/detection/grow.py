@@ -39,6 +39,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 from . import corner_refine, saddle
 from .image_circle import UnlitDistance
@@ -198,58 +199,132 @@ class Shifted:
         return self.pad[r0:r0 + self.R, c0:c0 + self.C]
 
 
-def _nanmean(stack: list[np.ndarray]) -> np.ndarray:
-    s = np.stack(stack)
-    finite = np.isfinite(s)
-    n = finite.sum(0)
-    with np.errstate(invalid="ignore"):
-        return np.where(n > 0, np.where(finite, s, 0.0).sum(0) / np.maximum(n, 1), np.nan)
-
-
 _AXES = ((0, 1), (0, -1), (1, 0), (-1, 0))
 
 
 def predict(p: np.ndarray) -> np.ndarray:
     """(R, C, 2) predicted pixel of every lattice position from its known neighbours (NaN where
-    none can): between two neighbours on a line (a hole, or a row a detector skipped),
-    else quadratic extrapolation along rows/columns, else linear, else the nearest cell's
-    parallelogram."""
-    at = Shifted(p, 3)
-    between, quad, lin, cell = [], [], [], []
-    for dr, dc in ((0, 1), (1, 0)):
-        a1, b1 = at(dr, dc), at(-dr, -dc)
-        a3, b3 = at(3 * dr, 3 * dc), at(-3 * dr, -3 * dc)
-        cubic = (9 * (a1 + b1) - (a3 + b3)) / 16   # follows the bending where four are known
-        between.append(np.where(np.isfinite(cubic), cubic, 0.5 * (a1 + b1)))
-    for dr, dc in _AXES:
-        p1, p2, p3 = at(dr, dc), at(2 * dr, 2 * dc), at(3 * dr, 3 * dc)
-        quad.append(3 * p1 - 3 * p2 + p3)
-        lin.append(2 * p1 - p2)
-    for sr in (1, -1):
-        for sc in (1, -1):
-            cell.append(at(sr, 0) + at(0, sc) - at(sr, sc))
-    out = _nanmean(between)
-    for tier in (quad, lin, cell):
-        out = np.where(np.isfinite(out), out, _nanmean(tier))
-    return out
+    none can): between two neighbours on a line (a hole, or a row a detector skipped; cubic
+    where four are known, following the bending), else quadratic extrapolation along
+    rows/columns, else linear, else the nearest cell's parallelogram."""
+    return _predict(np.ascontiguousarray(p, dtype=np.float64))
 
 
 def lattice_steps(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Local steps to the next column and the next row (R, C, 2) each, at known corners (the
     mean of the forward and backward differences) and, one step out, at their neighbours."""
-    at = Shifted(p, 2)
-    e_col = _nanmean([at(0, -1) - p, p - at(0, 1)])
-    e_row = _nanmean([at(-1, 0) - p, p - at(1, 0)])
-    # A grid that kept every other board line (grid.expand) has no neighbour one step away
-    # across the skipped lines: half the step to the one two away then.
-    e_col = np.where(np.isfinite(e_col), e_col, 0.5 * _nanmean([at(0, -2) - p, p - at(0, 2)]))
-    e_row = np.where(np.isfinite(e_row), e_row, 0.5 * _nanmean([at(-2, 0) - p, p - at(2, 0)]))
-    spread = []
-    for e in (e_col, e_row):
-        e_at = Shifted(e, 1)
-        around = _nanmean([e_at(dr, dc) for dr, dc in _AXES])
-        spread.append(np.where(np.isfinite(e), e, around))
-    return spread[0], spread[1]
+    return _lattice_steps(np.ascontiguousarray(p, dtype=np.float64))
+
+
+# The lattice arithmetic is compiled: as array expressions it was dozens of NumPy calls on small
+# arrays per lattice, each holding the GIL, so images detected on threads waited for each other.
+# The kernels do the same floating-point operations in the same order as those expressions did
+# (a mean of the finite values among a few is their sum in order, over their count), so they
+# give the same numbers to the last bit.
+
+
+@njit(cache=True, nogil=True)
+def _padded(p, m):  # pragma: no cover (compiled)
+    """p (R, C, 2) in a NaN margin m wide: the lattice's off-board neighbours read NaN without a test."""
+    out = np.full((p.shape[0] + 2 * m, p.shape[1] + 2 * m, 2), np.nan)
+    out[m:m + p.shape[0], m:m + p.shape[1]] = p
+    return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _finite_mean(vals, n):  # pragma: no cover (compiled)
+    """Mean of the finite values among vals[:n], summed in order from 0 as NumPy's sum does
+    (-0.0 sums to 0.0); NaN if there are none."""
+    count = 0
+    acc = 0.0
+    for m in range(n):
+        if np.isfinite(vals[m]):
+            acc += vals[m]
+            count += 1
+    return acc / count if count > 0 else np.nan
+
+
+_LINE = np.array([[0, 1], [1, 0]])                        # a row, a column
+_AXES_A = np.array(_AXES)                                # the four directions along them
+_CELLS = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]])  # the four cells round a position
+
+
+@njit(cache=True, nogil=True)
+def _predict(p):  # pragma: no cover (compiled)
+    out = np.empty_like(p)
+    vals = np.empty(4)
+    q = _padded(p, 3)
+    for i in range(3, p.shape[0] + 3):
+        for j in range(3, p.shape[1] + 3):
+            for k in range(2):
+                for a in range(2):   # between two neighbours on a line
+                    dr, dc = _LINE[a, 0], _LINE[a, 1]
+                    a1, b1 = q[i - dr, j - dc, k], q[i + dr, j + dc, k]
+                    a3, b3 = q[i - 3 * dr, j - 3 * dc, k], q[i + 3 * dr, j + 3 * dc, k]
+                    cubic = (9 * (a1 + b1) - (a3 + b3)) / 16
+                    vals[a] = cubic if np.isfinite(cubic) else 0.5 * (a1 + b1)
+                v = _finite_mean(vals, 2)
+                if not np.isfinite(v):   # quadratic along a row or column
+                    for a in range(4):
+                        dr, dc = _AXES_A[a, 0], _AXES_A[a, 1]
+                        vals[a] = (3 * q[i - dr, j - dc, k] - 3 * q[i - 2 * dr, j - 2 * dc, k]
+                                   + q[i - 3 * dr, j - 3 * dc, k])
+                    v = _finite_mean(vals, 4)
+                if not np.isfinite(v):   # linear
+                    for a in range(4):
+                        dr, dc = _AXES_A[a, 0], _AXES_A[a, 1]
+                        vals[a] = 2 * q[i - dr, j - dc, k] - q[i - 2 * dr, j - 2 * dc, k]
+                    v = _finite_mean(vals, 4)
+                if not np.isfinite(v):   # the nearest cell's parallelogram
+                    for a in range(4):
+                        sr, sc = _CELLS[a, 0], _CELLS[a, 1]
+                        vals[a] = q[i - sr, j, k] + q[i, j - sc, k] - q[i - sr, j - sc, k]
+                    v = _finite_mean(vals, 4)
+                out[i - 3, j - 3, k] = v
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _lattice_steps(p):  # pragma: no cover (compiled)
+    return _spread(_step_along(p, 0, 1)), _spread(_step_along(p, 1, 0))
+
+
+@njit(cache=True, nogil=True)
+def _step_along(p, dr, dc):  # pragma: no cover (compiled)
+    """The step (R, C, 2) to the next lattice position (dr, dc) at known corners."""
+    e = np.empty_like(p)
+    vals = np.empty(2)
+    q = _padded(p, 2)
+    for i in range(2, p.shape[0] + 2):
+        for j in range(2, p.shape[1] + 2):
+            for k in range(2):
+                x = q[i, j, k]
+                vals[0], vals[1] = q[i + dr, j + dc, k] - x, x - q[i - dr, j - dc, k]
+                v = _finite_mean(vals, 2)
+                if not np.isfinite(v):
+                    # A grid that kept every other board line (grid.expand) has no neighbour one
+                    # step away across the skipped lines: half the step to the one two away then.
+                    vals[0] = q[i + 2 * dr, j + 2 * dc, k] - x
+                    vals[1] = x - q[i - 2 * dr, j - 2 * dc, k]
+                    v = 0.5 * _finite_mean(vals, 2)
+                e[i - 2, j - 2, k] = v
+    return e
+
+
+@njit(cache=True, nogil=True)
+def _spread(e):  # pragma: no cover (compiled)
+    """e (R, C, 2) where finite, else the mean of its finite neighbours along the axes."""
+    out = e.copy()
+    vals = np.empty(4)
+    q = _padded(e, 1)
+    for i in range(e.shape[0]):
+        for j in range(e.shape[1]):
+            for k in range(2):
+                if not np.isfinite(e[i, j, k]):
+                    vals[0], vals[1] = q[i + 1, j, k], q[i + 1, j + 2, k]
+                    vals[2], vals[3] = q[i, j + 1, k], q[i + 2, j + 1, k]
+                    out[i, j, k] = _finite_mean(vals, 4)
+    return out
 
 
 def _drop_inconsistent(lat: Lattice, rounds: int = 3) -> int:
@@ -261,15 +336,34 @@ def _drop_inconsistent(lat: Lattice, rounds: int = 3) -> int:
     before = int(lat.known.sum())
     for _ in range(rounds):
         e_col, e_row = lat.steps()
-        surprise = np.linalg.norm(predict(lat.p) - lat.p, axis=-1) / corner_refine.nearest_corner(e_col, e_row)
-        surprise = np.where(np.isfinite(surprise), surprise, 0.0)
-        s_at = Shifted(surprise, 1)
-        around = np.max([s_at(dr, dc) for dr, dc in _AXES], axis=0)
-        bad = (surprise > MAX_SURPRISE) & (surprise >= np.nan_to_num(around))
+        bad = _worst_surprises(predict(lat.p), lat.p, corner_refine.nearest_corner(e_col, e_row))
         if not bad.any():
             break
         lat.p[bad] = np.nan
     return before - int(lat.known.sum())
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _worst_surprises(pred, p, spacing):  # pragma: no cover (compiled)
+    """(R, C) bool: corners p that their neighbours' prediction pred (R, C, 2) places more than
+    MAX_SURPRISE of a square (spacing (R, C) px) away, and at least as far as any of their four
+    neighbours is placed (an off-lattice neighbour counts 0)."""
+    R, C = spacing.shape
+    surprise = np.zeros((R + 2, C + 2))   # margin: NaN there, as np.max over shifted copies gave, taken as 0
+    for i in range(R):
+        for j in range(C):
+            dx, dy = pred[i, j, 0] - p[i, j, 0], pred[i, j, 1] - p[i, j, 1]
+            s = np.sqrt(dx * dx + dy * dy) / spacing[i, j]
+            surprise[i + 1, j + 1] = s if np.isfinite(s) else 0.0
+    bad = np.zeros((R, C), np.bool_)
+    for i in range(R):
+        for j in range(C):
+            s = surprise[i + 1, j + 1]
+            on_edge = i == 0 or j == 0 or i == R - 1 or j == C - 1
+            around = 0.0 if on_edge else max(surprise[i + 1, j], surprise[i + 1, j + 2],
+                                             surprise[i, j + 1], surprise[i + 2, j + 1])
+            bad[i, j] = s > MAX_SURPRISE and s >= around
+    return bad
 
 
 def _seed_check(gray: np.ndarray, lat: Lattice) -> tuple[np.ndarray | None, int]:

@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 from ..evaluation.coverage import Circle
+from .quantiles import percentiles
 
 BLUR_SIGMA = 2.0
 BLUR_REACH = 8      # OpenCV's kernel radius for BLUR_SIGMA: round(8 σ + 1) | 1 taps
@@ -74,6 +75,7 @@ MIN_RIM_RAYS = 0.25      # share of the rays that must end inside the frame (not
 MIN_ON_CIRCLE = 0.5      # share of those rays' ends within RIM_TOLERANCE of the fitted circle
 RIM_TOLERANCE = 0.01     # of the radius (at least 1.5 px of the working copy)
 MIN_CIRCLE_SHARE = 0.5   # of a set's photos that must show the circle for the set to have one
+_FIFTH = np.array([5]) / 100
 
 
 def find_image_circle(gray: np.ndarray) -> Circle | None:
@@ -96,7 +98,7 @@ def find_image_circle(gray: np.ndarray) -> Circle | None:
         small = _reduced(gray, size)
         border = _Border.unreduced(small)
     frame = border.frame()
-    black = float(np.percentile(frame, 5))
+    black = float(percentiles(frame.astype(np.float64), _FIFTH)[0])   # np.percentile(frame, 5)
     if black > MAX_FRAME_BLACK or np.mean(frame <= black + LIT_ABOVE_BLACK) < MIN_DARK_FRAME:
         return None
     # A ray whose outermost lit pixel lies within a px of the border leaves the frame lit: when

@@ -15,10 +15,17 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-run: $(STAMP)
+# The compiled kernels into numba's on-disk cache (about 30 s once; calib_core/warm_up.py),
+# again whenever the code changes, so that the first photo set or calibration does not wait.
+KERNELS := $(VENV)/.kernels
+$(KERNELS): $(STAMP) $(shell find calib_core -name '*.py')
+	$(PY) -m calib_core.warm_up
+	touch $(KERNELS)
+
+run: $(KERNELS)
 	$(VENV)/bin/freecal serve --data-dir data
 
-test: $(STAMP) lint
+test: $(STAMP) lint $(KERNELS)
 	@bash scripts/ensure-system-packages.sh
 	@bash scripts/ensure-mrcal.sh >/dev/null
 	# the science's tests on both cores; the service's and the page's one at a time (they start servers

@@ -185,8 +185,8 @@ def _arm_points(pts, e_col, e_row, out):  # pragma: no cover (compiled)
             for d in range(2):
                 mid = pts[c, d] + ARM_AT * (sign * along[d])
                 off = across[d] / _maximum(side, 1e-9) * reach
-                out[c * 8 + 2 * a, d] = mid + off
-                out[c * 8 + 2 * a + 1, d] = mid - off
+                out[c * _ARM_SAMPLES + 2 * a, d] = mid + off
+                out[c * _ARM_SAMPLES + 2 * a + 1, d] = mid - off
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -212,7 +212,7 @@ def _weakest_arms(vals, n):  # pragma: no cover (compiled)
     for c in range(n):
         w = np.inf
         for a in range(4):
-            w = min(w, abs(vals[c * 8 + 2 * a] - vals[c * 8 + 2 * a + 1]))
+            w = min(w, abs(vals[c * _ARM_SAMPLES + 2 * a] - vals[c * _ARM_SAMPLES + 2 * a + 1]))
         out[c] = w
     return out
 

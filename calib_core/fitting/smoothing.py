@@ -71,7 +71,7 @@ def groups_of(view_index: np.ndarray, max_groups: int = MAX_GROUPS) -> np.ndarra
 
 def cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge: sp.csr_matrix,
              response: np.ndarray, ridge: float, groups: np.ndarray, lambdas: np.ndarray = LAMBDA_GRID,
-             refine: bool = False) -> CVCurve:
+             refine: bool = False, start: float | None = None) -> CVCurve:
     """Grouped cross-validation over ``lambdas`` for the two field components.
 
     b: (N, n) design; weights: (N, 2) per-component sample weights (mean 1);
@@ -81,9 +81,12 @@ def cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge: 
     the rows left out together. The left-out residuals are scored unweighted:
     the weights shape the fit, a user's error is in pixels.
 
-    ``refine``: score every other λ first, then the two between the best and
-    its neighbours (the score is smooth in log λ): the same choice on a
-    uniform log grid for 60 % of the work."""
+    ``refine``: walk the grid downhill instead of scoring all of it (the
+    score is smooth in log λ, with one minimum): from ``start``'s nearest
+    λ and its neighbours (a neighbouring knot grid's choice), else from
+    every fourth λ, on to each lower neighbour until both neighbours of the
+    lowest are scored. The same choice as the whole grid for a third of its
+    scores."""
     lambdas = np.asarray(lambdas, dtype=float)
     b = sp.csr_matrix(b)
     r = (bend.T @ bend).toarray()
@@ -107,15 +110,27 @@ def cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge: 
     if not refine or len(lambdas) < 5:
         sse, dof = evaluate(lambdas)
         return CVCurve(lambdas, sse, counts.astype(float), dof)
-    coarse = np.arange(0, len(lambdas), 2)
-    sse, dof = evaluate(lambdas[coarse])
-    best = coarse[int(np.argmin(sse.sum(axis=0)))]
-    fine = np.array([k for k in (best - 1, best + 1) if 0 <= k < len(lambdas)])
-    sse_f, dof_f = evaluate(lambdas[fine])
-    idx = np.concatenate([coarse, fine])
-    keep = np.argsort(idx)
-    return CVCurve(lambdas[idx][keep], np.hstack([sse, sse_f])[:, keep], counts.astype(float),
-                   np.concatenate([dof, dof_f])[keep])
+    scored: dict[int, tuple[np.ndarray, float]] = {}  # grid index → (per-group SSE, dof)
+
+    def score(indices) -> None:
+        new = sorted({int(k) for k in indices if 0 <= k < len(lambdas)} - scored.keys())
+        if new:
+            sse, dof = evaluate(lambdas[new])
+            scored.update({k: (sse[:, j], float(dof[j])) for j, k in enumerate(new)})
+
+    if start is None:
+        score(range(0, len(lambdas), 4))
+    else:
+        first = int(np.argmin(np.abs(np.log(lambdas) - np.log(start))))
+        score((first - 1, first, first + 1))
+    while True:
+        best = min(scored, key=lambda k: float(scored[k][0].sum()))
+        if {best - 1, best + 1} & set(range(len(lambdas))) <= scored.keys():
+            break
+        score((best - 1, best + 1))
+    idx = np.array(sorted(scored))
+    return CVCurve(lambdas[idx], np.column_stack([scored[k][0] for k in idx]), counts.astype(float),
+                   np.array([scored[k][1] for k in idx]))
 
 
 def _null_space(g: np.ndarray, r: np.ndarray):

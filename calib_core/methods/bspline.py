@@ -370,7 +370,7 @@ def _fitted(problem: FieldProblem, breaks, lambda_reg, lambda_smooth, start, sam
 
 
 def _field_cv(problem: FieldProblem, field: BSplineField, samples, response, weights, views, lambda_reg: float,
-              lambdas: np.ndarray, refine: bool = False) -> CVCurve:
+              lambdas: np.ndarray, refine: bool = False, start: float | None = None) -> CVCurve:
     """Grouped (by view) cross-validation of the control points on this
     field's knots (``smoothing.cv_curve``). What is smoothed is the departure
     from the prior field: that is what is cross-validated."""
@@ -378,7 +378,7 @@ def _field_cv(problem: FieldProblem, field: BSplineField, samples, response, wei
     p0 = problem.prior_control(field).reshape(-1, 2)
     return cv_curve(b, weights / weights.mean(axis=0), field.bending(),
                     gauge_rows(field, problem.gauge_point) * GAUGE_WEIGHT, response - b @ p0,
-                    lambda_reg, groups_of(views), lambdas, refine)
+                    lambda_reg, groups_of(views), lambdas, refine, start)
 
 
 def _choose_smoothing(problem: FieldProblem, samples, response, weights, views, s: BSplineSettings,
@@ -409,6 +409,7 @@ def _choose_smoothing(problem: FieldProblem, samples, response, weights, views, 
     options: list[tuple[int, tuple[int, int], float, float, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]] = []
     scored: dict[tuple[bytes, bytes], tuple[CVCurve, float, np.ndarray | None, np.ndarray]] = {}
     jointly = joint is not None and len(counts) * len(factors) > 1  # grids to compare
+    previous = None  # the λ of the grid scored last: where the next grid's search starts
     for factor in factors:
         stale = 0  # finer grids in a row that predicted no better than the best so far
         for m in counts:
@@ -422,8 +423,9 @@ def _choose_smoothing(problem: FieldProblem, samples, response, weights, views, 
             key = (breaks[0].tobytes(), breaks[1].tobytes())
             if key not in scored:  # factors that move no knot (e.g. uniform knots) cost nothing more
                 field = BSplineField.zeros(clamped_knots(breaks[0]), clamped_knots(breaks[1]))
-                cv = _field_cv(problem, field, samples, response, weights, views, s.lambda_reg, lambdas, refine=True)
-                lam = float(cv.lambdas[cv.best])
+                cv = _field_cv(problem, field, samples, response, weights, views, s.lambda_reg, lambdas, refine=True,
+                               start=previous)
+                lam = previous = float(cv.lambdas[cv.best])
                 if jointly:  # per view
                     sse, units = joint(breaks, lam)
                 else:  # per group of the control points' validation

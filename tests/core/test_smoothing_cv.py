@@ -91,3 +91,15 @@ def test_refined_search_finds_the_full_grids_minimum():
     quick = cv_curve(b, weights, field.bending(), gauge, response, 1e-6, groups_of(view), refine=True)
     assert quick.lambdas[quick.best] == full.lambdas[full.best]
     assert len(quick.lambdas) < 0.7 * len(full.lambdas)
+
+
+def test_search_from_a_neighbouring_grids_choice_walks_to_the_same_minimum():
+    field, b, weights, gauge, response, view = _problem(2, intervals=8)
+    full = cv_curve(b, weights, field.bending(), gauge, response, 1e-6, groups_of(view))
+    for start in (LAMBDA_GRID[0], full.lambdas[full.best], LAMBDA_GRID[-1]):
+        walked = cv_curve(b, weights, field.bending(), gauge, response, 1e-6, groups_of(view), refine=True, start=start)
+        assert walked.lambdas[walked.best] == full.lambdas[full.best]
+        assert np.allclose(walked.score, full.score[np.isin(full.lambdas, walked.lambdas)], rtol=1e-12)
+    near = cv_curve(b, weights, field.bending(), gauge, response, 1e-6, groups_of(view), refine=True,
+                    start=full.lambdas[full.best])
+    assert len(near.lambdas) == 3  # the choice and its two neighbours

@@ -146,6 +146,26 @@ def linearised_view_errors(model: CameraModel, poses: np.ndarray, data: Data, sc
     return ViewErrors(errors, steps, refitted)
 
 
+def free_parameters(model: CameraModel) -> np.ndarray:
+    """(n_params,) bool: the parameters a fit of ``model`` moves."""
+    mask = model.free_mask()
+    return np.ones(model.n_params, dtype=bool) if mask is None else mask
+
+
+def held_steps(model: CameraModel, core: CameraModel, core_steps: np.ndarray) -> np.ndarray:
+    """A model over ``core`` holds some of the core's parameters where the core's
+    own fit put them (a hybrid's coefficients): their move when each view leaves
+    that fit, from the core's own ``ViewErrors.steps`` (over its free
+    parameters), as ``linearised_view_errors`` takes it."""
+    column = {p: j for j, p in enumerate(np.flatnonzero(free_parameters(core)))}
+    held = np.flatnonzero(~free_parameters(model))  # the model's parameters start with its core's
+    out = np.zeros((len(core_steps), len(held)))
+    for k, p in enumerate(held):
+        if p in column:
+            out[:, k] = core_steps[:, column[p]]
+    return out
+
+
 def _moved(model: CameraModel, free_idx: np.ndarray, step: np.ndarray, held_move: np.ndarray | None) -> CameraModel:
     """The model with its free parameters moved by ``step`` and its held ones by ``held_move``."""
     x = model.params().copy()

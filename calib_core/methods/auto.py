@@ -31,12 +31,12 @@ from .. import ranges
 from ..errors import DataError
 from ..fit_report import ChoiceReport
 from ..fitting.choice import Candidate, ModelChoice, choose
-from ..fitting.crossval import linearised_view_errors
+from ..fitting.crossval import free_parameters, held_steps, linearised_view_errors
 from ..fitting.init import initialise, poses_from_rays
 from ..fitting.solve import Data, SolveSettings, levenberg_marquardt, spread_views
 from ..models.camera import PINHOLE_MAX_ANGLE_DEG
 from .bspline import BSplineSettings, FieldScreen, field_design, field_screen, fit_core, fit_field
-from .common import Fit, Progress, named, no_progress, scaled
+from .common import Fit, Progress, named, no_progress, own_view_errors, scaled
 from .opencv import pinhole_visible
 
 
@@ -130,7 +130,7 @@ def _refined(fit: Fit, data: Data, progress: Progress) -> Fit:
     diagnostics = dict(fit.diagnostics)
     if model.bspline_field is not None:
         diagnostics["design"] = field_design(res.model, res.poses, sub, BSplineSettings())
-    return dataclasses.replace(fit, result=res, excluded=~ok, diagnostics=diagnostics)
+    return dataclasses.replace(fit, result=res, excluded=~ok, diagnostics=diagnostics, view_errors=None)
 
 
 def _solve_settings(fit: Fit) -> SolveSettings:
@@ -219,23 +219,22 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -
     kept = np.logical_and.reduce([~f.excluded for f in fits if f is not None])
     counts = np.bincount(sample.view_index[kept], minlength=sample.n_views)
     candidates = []
-    core_steps: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # core → (its free parameters, their moves per view)
+    core_fits = {spec.core: fit for spec, fit in zip(specs, fits, strict=True) if spec.field is None and fit is not None}
     for spec, fit, reason in zip(specs, fits, why_not, strict=True):
         errors = None
         if fit is not None:
             used = ~fit.excluded
-            own = sample.points(used)
             model = fit.result.model
             try:
-                held = _held_steps(model, core_steps.get(spec.core)) if spec.field is not None else None
-                lovo = linearised_view_errors(model, fit.result.poses, own, kept[used], held)
-                errors = lovo.errors
-                if spec.field is None:
-                    core_steps[spec.core] = (np.flatnonzero(_free(model)), lovo.steps)
+                if spec.field is None and kept[used].all():
+                    errors = own_view_errors(fit, sample).errors  # a field over it may have asked already
+                else:
+                    held = _held(model, core_fits.get(spec.core) if spec.field is not None else None, sample)
+                    errors = linearised_view_errors(model, fit.result.poses, sample.points(used), kept[used], held).errors
             except np.linalg.LinAlgError:
                 reason = "its fit without some view is undetermined"
         candidates.append(Candidate(spec.name, spec.label, errors, reason,
-                                    None if fit is None else int(np.sum(_free(fit.result.model)))))
+                                    None if fit is None else int(np.sum(free_parameters(fit.result.model)))))
     how = (f"error per axis on each of the {sample.n_views} views left out of the fit (one Gauss-Newton step "
            "from the full fit without the view, or a refit where that step leaves the linear regime; then only "
            "the view's pose refit)")
@@ -245,25 +244,17 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -
     return choose(candidates, counts, how=how)
 
 
-def _held_steps(model, core: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray | None:
+def _held(model, core_fit: Fit | None, sample: Data) -> np.ndarray | None:
     """A field over a core holds the core's coefficients where the core's own
-    fit put them: their move when each view leaves that fit, as
-    ``linearised_view_errors`` takes it (None when the core was not scored)."""
-    if core is None:
+    fit put them: their move when each view leaves that fit
+    (``crossval.held_steps``); None without a core, or where the core without
+    some view is undetermined."""
+    if core_fit is None:
         return None
-    free_in_core, steps = core
-    column = {p: j for j, p in enumerate(free_in_core)}
-    held = np.flatnonzero(~_free(model))  # a hybrid's parameters start with its core's
-    out = np.zeros((len(steps), len(held)))
-    for k, p in enumerate(held):
-        if p in column:
-            out[:, k] = steps[:, column[p]]
-    return out
-
-
-def _free(model) -> np.ndarray:
-    mask = model.free_mask()
-    return np.ones(model.n_params, dtype=bool) if mask is None else mask
+    try:
+        return held_steps(model, core_fit.result.model, own_view_errors(core_fit, sample).steps)
+    except np.linalg.LinAlgError:
+        return None
 
 
 def _try(why_not: list[str], i: int, fit_fn, *args):

@@ -177,9 +177,8 @@ def test_a_field_over_a_core_is_scored_with_the_view_left_out_of_its_core_too():
     with refitting both stages without the view; holding the core as fitted
     to every view scores lower than either."""
     from calib_core import synth
-    from calib_core.fitting.crossval import linearised_view_errors
+    from calib_core.fitting.crossval import held_steps, linearised_view_errors
     from calib_core.fitting.solve import SolveSettings, levenberg_marquardt, select_views
-    from calib_core.methods.auto import _free, _held_steps
     from calib_core.pipeline import to_data
 
     train = synth.generate("fisheye", 0.3, 0, 10).train
@@ -190,7 +189,7 @@ def test_a_field_over_a_core_is_scored_with_the_view_left_out_of_its_core_too():
     assert np.allclose(field.model.core.params()[4:], core.model.params()[4:])
     poses = {id(c): np.array([np.concatenate([v.rvec, v.tvec]) for v in c.views]) for c in (core, field)}
     core_lovo = linearised_view_errors(core.model, poses[id(core)], data)
-    held = _held_steps(field.model, (np.flatnonzero(_free(core.model)), core_lovo.steps))
+    held = held_steps(field.model, core.model, core_lovo.steps)
     two_stage = linearised_view_errors(field.model, poses[id(field)], data, held_steps=held).errors
     core_held = linearised_view_errors(field.model, poses[id(field)], data).errors
     exact = SolveSettings(200, 1e-12, gauss_newton_trials=True)
@@ -207,3 +206,17 @@ def test_a_field_over_a_core_is_scored_with_the_view_left_out_of_its_core_too():
         refits[v] = np.sum(alone.residuals ** 2)
     assert two_stage.sum() == pytest.approx(refits.sum(), rel=0.01)
     assert core_held.sum() < two_stage.sum()
+
+
+@pytest.mark.slow
+def test_a_field_over_a_core_chooses_its_grid_by_the_score_the_model_choice_gives_it():
+    """One criterion: the knot grid of a field over a core is chosen by the
+    same leave-one-view-out score (its core left out too) that then sets it
+    against the other candidates, not by a second score that holds the core."""
+    from calib_core import synth
+
+    cal = calibrate(synth.generate("asymmetric", 0.3, 0, 10).train, "auto")
+    assert cal.settings["chosen"] == "hybrid-rational"
+    chosen_grid = next(e for e in cal.diagnostics.extra["smoothing_curve"]
+                       if e.get("intervals") == cal.settings["intervals_used"])
+    assert chosen_grid["validation"] == pytest.approx(candidate(cal, "hybrid-rational").validation_mse, rel=1e-9)

@@ -34,9 +34,10 @@ from ..fitting.choice import Candidate, ModelChoice, choose
 from ..fitting.crossval import free_parameters, held_steps, linearised_view_errors
 from ..fitting.init import initialise, poses_from_rays
 from ..fitting.solve import Data, SolveSettings, levenberg_marquardt, spread_views
+from ..models.base import CameraModel
 from ..models.camera import PINHOLE_MAX_ANGLE_DEG
 from .bspline import BSplineSettings, FieldScreen, field_design, field_screen, fit_core, fit_field
-from .common import Fit, Progress, named, no_progress, own_view_errors, scaled
+from .common import Fit, Progress, named, no_progress, scaled
 from .opencv import pinhole_visible
 
 
@@ -130,7 +131,7 @@ def _refined(fit: Fit, data: Data, progress: Progress) -> Fit:
     diagnostics = dict(fit.diagnostics)
     if model.bspline_field is not None:
         diagnostics["design"] = field_design(res.model, res.poses, sub, BSplineSettings())
-    return dataclasses.replace(fit, result=res, excluded=~ok, diagnostics=diagnostics, view_errors=None)
+    return dataclasses.replace(fit, result=res, excluded=~ok, diagnostics=diagnostics)
 
 
 def _solve_settings(fit: Fit) -> SolveSettings:
@@ -219,18 +220,19 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -
     kept = np.logical_and.reduce([~f.excluded for f in fits if f is not None])
     counts = np.bincount(sample.view_index[kept], minlength=sample.n_views)
     candidates = []
-    core_fits = {spec.core: fit for spec, fit in zip(specs, fits, strict=True) if spec.field is None and fit is not None}
+    core_steps: dict[str, tuple[CameraModel, np.ndarray]] = {}  # core → (its model, its moves per view)
     for spec, fit, reason in zip(specs, fits, why_not, strict=True):
         errors = None
         if fit is not None:
             used = ~fit.excluded
             model = fit.result.model
+            core = core_steps.get(spec.core) if spec.field is not None else None
             try:
-                if spec.field is None and kept[used].all():
-                    errors = own_view_errors(fit, sample).errors  # a field over it may have asked already
-                else:
-                    held = _held(model, core_fits.get(spec.core) if spec.field is not None else None, sample)
-                    errors = linearised_view_errors(model, fit.result.poses, sample.points(used), kept[used], held).errors
+                held = None if core is None else held_steps(model, *core)
+                lovo = linearised_view_errors(model, fit.result.poses, sample.points(used), kept[used], held)
+                errors = lovo.errors
+                if spec.field is None:
+                    core_steps[spec.core] = (model, lovo.steps)
             except np.linalg.LinAlgError:
                 reason = "its fit without some view is undetermined"
         candidates.append(Candidate(spec.name, spec.label, errors, reason,
@@ -242,19 +244,6 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -
         raise DataError("no model could be validated on these corners: "
                         + "; ".join(dict.fromkeys(f"{c.label}: {c.error}" for c in candidates if c.error)))
     return choose(candidates, counts, how=how)
-
-
-def _held(model, core_fit: Fit | None, sample: Data) -> np.ndarray | None:
-    """A field over a core holds the core's coefficients where the core's own
-    fit put them: their move when each view leaves that fit
-    (``crossval.held_steps``); None without a core, or where the core without
-    some view is undetermined."""
-    if core_fit is None:
-        return None
-    try:
-        return held_steps(model, core_fit.result.model, own_view_errors(core_fit, sample).steps)
-    except np.linalg.LinAlgError:
-        return None
 
 
 def _try(why_not: list[str], i: int, fit_fn, *args):

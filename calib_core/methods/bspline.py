@@ -36,7 +36,7 @@ from .. import ranges
 from ..errors import DataError, SettingsError
 from ..fit_report import Restart, RestartFit
 from ..fitting import knots, metrics
-from ..fitting.crossval import held_steps, linearised_view_errors
+from ..fitting.crossval import linearised_view_errors
 from ..fitting.gram import gram
 from ..fitting.init import initialise
 from ..fitting.knots import KnotSettings
@@ -48,7 +48,7 @@ from ..models.base import CameraModel
 from ..models.bspline import GAUGE_WEIGHT, BSplineModel, gauge_rows
 from ..models.bspline_basis import BSplineField, clamped_knots
 from ..models.hybrid import HybridModel
-from .common import Fit, Progress, no_progress, own_view_errors
+from .common import Fit, Progress, no_progress
 from .fisheye import FisheyeSettings, fit_fisheye
 from .opencv import OpenCVSettings, RationalSettings, fit_opencv
 
@@ -573,21 +573,6 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
         samples, response, views = problem.samples(first.model, first.poses, sub)
         weights = sample_weights(samples, response, s)
 
-        core_steps: list[np.ndarray | None] = []  # the core's own move when each view leaves its fit, once known
-
-        def held(fitted_model) -> np.ndarray | None:
-            """A field over a core is scored as the model choice scores it: the
-            core's coefficients move too when a view leaves (``crossval.held_steps``)."""
-            if core == "none":
-                return None
-            if not core_steps:
-                try:
-                    core_steps.append((own_view_errors(core_fit, data) if core_fit is not None
-                                       else linearised_view_errors(start, poses, sub)).steps)
-                except np.linalg.LinAlgError:  # the core without some view is undetermined: held where it is
-                    core_steps.append(None)
-            return None if core_steps[0] is None else held_steps(fitted_model, start, core_steps[0])
-
         def joint(grid_breaks, grid_lam):
             """A grid's joint fit (kept for reuse), its views' errors left out of it (None
             if the corners cannot carry the grid) and their corner counts."""
@@ -598,7 +583,7 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
                 return None, units
             fitted = levenberg_marquardt(start_model, first.poses, sub, final)
             joint_fits[(grid_breaks[0].tobytes(), grid_breaks[1].tobytes(), grid_lam)] = fitted
-            return linearised_view_errors(fitted.model, fitted.poses, sub, None, held(fitted.model)).errors, units
+            return linearised_view_errors(fitted.model, fitted.poses, sub).errors, units
 
         m, factor, lam, breaks, curve = _choose_smoothing(problem, samples, response, weights, views, s, joint)
         progress("control points", 0.5)

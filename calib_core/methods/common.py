@@ -10,7 +10,6 @@ import numpy as np
 
 from ..errors import SettingsError
 from ..fit_report import ChoiceReport, Restart
-from ..fitting.crossval import ViewErrors, linearised_view_errors
 from ..fitting.solve import Data, ModelT_co, SolveResult, SolveSettings
 
 Progress = Callable[[str, float], None]
@@ -52,16 +51,6 @@ class Fit(Generic[ModelT_co]):
     solve_settings: SolveSettings | None = None
     model_choice: ChoiceReport | None = None  # method auto's choice among candidates
     restart: Restart | None = None  # a field fit restarted from a parametric camera
-    view_errors: ViewErrors | None = None  # own_view_errors, once computed
-
-
-def own_view_errors(fit: Fit, data: Data) -> ViewErrors:
-    """``fit``'s errors on each view left out of it, over every point it used of
-    ``data`` (what it was fitted to), computed once: a field over its model and
-    the model choice both ask."""
-    if fit.view_errors is None:
-        fit.view_errors = linearised_view_errors(fit.result.model, fit.result.poses, data.points(~fit.excluded))
-    return fit.view_errors
 
 
 def settings_from(cls, values: dict[str, Any]):

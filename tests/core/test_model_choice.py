@@ -206,17 +206,3 @@ def test_a_field_over_a_core_is_scored_with_the_view_left_out_of_its_core_too():
         refits[v] = np.sum(alone.residuals ** 2)
     assert two_stage.sum() == pytest.approx(refits.sum(), rel=0.01)
     assert core_held.sum() < two_stage.sum()
-
-
-@pytest.mark.slow
-def test_a_field_over_a_core_chooses_its_grid_by_the_score_the_model_choice_gives_it():
-    """One criterion: the knot grid of a field over a core is chosen by the
-    same leave-one-view-out score (its core left out too) that then sets it
-    against the other candidates, not by a second score that holds the core."""
-    from calib_core import synth
-
-    cal = calibrate(synth.generate("asymmetric", 0.3, 0, 10).train, "auto")
-    assert cal.settings["chosen"] == "hybrid-rational"
-    chosen_grid = next(e for e in cal.diagnostics.extra["smoothing_curve"]
-                       if e.get("intervals") == cal.settings["intervals_used"])
-    assert chosen_grid["validation"] == pytest.approx(candidate(cal, "hybrid-rational").validation_mse, rel=1e-9)

@@ -85,8 +85,8 @@ def cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge: 
     score is smooth in log λ, with one minimum): from ``start``'s nearest
     λ and its neighbours (a neighbouring knot grid's choice), else from
     every fourth λ, on to each lower neighbour until both neighbours of the
-    lowest are scored. The same choice as the whole grid for a third of its
-    scores."""
+    lowest are scored. The same choice as the whole grid for a sixth to a
+    third of its scores."""
     lambdas = np.asarray(lambdas, dtype=float)
     b = sp.csr_matrix(b)
     r = (bend.T @ bend).toarray()

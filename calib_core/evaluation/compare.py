@@ -33,11 +33,11 @@ from ..fitting.crossval import folds
 from ..fitting.view_set import check_views
 from ..methods import METHODS
 from ..methods.common import Progress, named, no_progress, scaled
+from ..models.base import fitted_parameter_count
 from ..observations import Observations
 from ..pipeline import MIN_VIEWS, calibrate
 from . import quality
 from .evaluate import validation_residuals
-from .parameters import fitted_parameter_count
 
 DEFAULT_METHODS = ("zhang", "rational", "fisheye", "mls", "tps", "bspline")
 SETTINGS = ("methods", "splits")  # what a caller may set of compare(): the service's compare jobs

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..models import BSplineModel, FisheyeModel, HybridModel, OpenCVModel, camera
-from ..models.base import CameraModel
+from ..models.base import CameraModel, fitted_parameter_count
 from ..models.residual_field import ResidualFieldModel
 from .verdict import uncovered_regions, verdict
 
@@ -34,13 +34,6 @@ INTRINSICS = ("fx", "fy", "cx", "cy", "skew")
 FOV_SAMPLES = 400            # rays along each line the field of view is swept over
 UNCERTAINTY_CELLS = 32       # projection-uncertainty samples across the image's longer side
 HELD_CORE = "held where the core's own fit put them (the field takes what they would)"
-
-
-def fitted_parameter_count(model: CameraModel) -> int:
-    """The parameters the fit moved (a hybrid holds its core's coefficients,
-    a held field is no parameter): what a table of models should count."""
-    free = model.free_mask()
-    return int(model.n_params if free is None else np.sum(free))
 
 
 def model_in_words(model: CameraModel) -> str:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from ..models.base import CameraModel
+from ..models.base import CameraModel, free_parameters
 from .gram import gram
 from .solve import Data, SolveSettings, levenberg_marquardt, residuals, residuals_and_jacobian, select_views
 
@@ -118,7 +118,7 @@ def linearised_view_errors(model: CameraModel, poses: np.ndarray, data: Data, sc
     errors = np.zeros(data.n_views)
     steps = np.zeros((data.n_views, n_model))
     ridge = 1e-12 * np.trace(s) / max(n_model, 1) * np.eye(n_model)
-    free_idx = np.arange(model.n_params) if free is None else np.flatnonzero(free)
+    free_idx = np.flatnonzero(free_parameters(model))
     refitted = 0
     for v, (span, a, at, b, nvv, share, held_part) in enumerate(parts):
         rv = r_view[span]
@@ -144,12 +144,6 @@ def linearised_view_errors(model: CameraModel, poses: np.ndarray, data: Data, sc
             errors[v], steps[v] = _refit_without(model, poses, data, v, free_idx, held_move, weight[span][::2])
             refitted += 1
     return ViewErrors(errors, steps, refitted)
-
-
-def free_parameters(model: CameraModel) -> np.ndarray:
-    """(n_params,) bool: the parameters a fit of ``model`` moves."""
-    mask = model.free_mask()
-    return np.ones(model.n_params, dtype=bool) if mask is None else mask
 
 
 def held_steps(model: CameraModel, core: CameraModel, core_steps: np.ndarray) -> np.ndarray:

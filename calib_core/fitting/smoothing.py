@@ -125,9 +125,10 @@ def cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge: 
         score((first - 1, first, first + 1))
     while True:
         best = min(scored, key=lambda k: float(scored[k][0].sum()))
-        if {best - 1, best + 1} & set(range(len(lambdas))) <= scored.keys():
+        unscored = [k for k in (best - 1, best + 1) if 0 <= k < len(lambdas) and k not in scored]
+        if not unscored:
             break
-        score((best - 1, best + 1))
+        score(unscored)
     idx = np.array(sorted(scored))
     return CVCurve(lambdas[idx], np.column_stack([scored[k][0] for k in idx]), counts.astype(float),
                    np.array([scored[k][1] for k in idx]))

@@ -31,10 +31,10 @@ from .. import ranges
 from ..errors import DataError
 from ..fit_report import ChoiceReport
 from ..fitting.choice import Candidate, ModelChoice, choose
-from ..fitting.crossval import free_parameters, held_steps, linearised_view_errors
+from ..fitting.crossval import held_steps, linearised_view_errors
 from ..fitting.init import initialise, poses_from_rays
 from ..fitting.solve import Data, SolveSettings, levenberg_marquardt, spread_views
-from ..models.base import CameraModel
+from ..models.base import CameraModel, fitted_parameter_count
 from ..models.camera import PINHOLE_MAX_ANGLE_DEG
 from .bspline import BSplineSettings, FieldScreen, field_design, field_screen, fit_core, fit_field
 from .common import Fit, Progress, named, no_progress, scaled
@@ -236,7 +236,7 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -
             except np.linalg.LinAlgError:
                 reason = "its fit without some view is undetermined"
         candidates.append(Candidate(spec.name, spec.label, errors, reason,
-                                    None if fit is None else int(np.sum(free_parameters(fit.result.model)))))
+                                    None if fit is None else fitted_parameter_count(fit.result.model)))
     how = (f"error per axis on each of the {sample.n_views} views left out of the fit (one Gauss-Newton step "
            "from the full fit without the view, or a refit where that step leaves the linear regime; then only "
            "the view's pose refit)")

@@ -162,6 +162,18 @@ class CameraModel(ABC):
         return {"fx": fx, "fy": fy, "cx": cx, "cy": cy, "skew": s}
 
 
+def free_parameters(model: CameraModel) -> np.ndarray:
+    """(n_params,) bool: the parameters a fit of ``model`` moves (``free_mask``, None: all)."""
+    mask = model.free_mask()
+    return np.ones(model.n_params, dtype=bool) if mask is None else mask
+
+
+def fitted_parameter_count(model: CameraModel) -> int:
+    """The parameters the fit moved (a hybrid holds its core's coefficients,
+    a held field is no parameter): what a table or a choice of models counts."""
+    return int(np.sum(free_parameters(model)))
+
+
 class ParametricModel(CameraModel):
     """A model with parameters ``[fx, fy, cx, cy, coefficients…]``, skew 0
     (OpenCV's and Kannala–Brandt's)."""

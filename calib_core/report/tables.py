@@ -16,9 +16,9 @@ import numpy as np
 
 from ..calibration import Calibration, json_safe
 from ..errors import DataError
-from ..evaluation.parameters import fitted_parameter_count
 from ..evaluation.view_flags import view_flags
 from ..exports import opencv_yaml
+from ..models.base import fitted_parameter_count
 from ..observations import Observations
 from .distortion import distortion_maps
 

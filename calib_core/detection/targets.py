@@ -53,7 +53,7 @@ class BoardHit:
 
 
 def detect_target_file(path: str | Path, target: Target, name: str | None = None) -> ImageResult:
-    return on_file(path, name, lambda gray: detect_target(gray, target))
+    return on_file(path, name, lambda gray, _circle: detect_target(gray, target))
 
 
 def detect_target(gray: np.ndarray, target: Target) -> ImageResult:

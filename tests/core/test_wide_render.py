@@ -15,6 +15,7 @@ from calib_core import calibrate, synth
 from calib_core.board import BoardSpec
 from calib_core.detection.corner_error import same_id_errors
 from calib_core.detection.detect import detect_images
+from calib_core.detection.detect_image import detect_file, detect_gray
 from calib_core.evaluation.evaluate import evaluate
 from calib_core.observations import Observations
 from calib_core.synth import render
@@ -70,3 +71,19 @@ def test_rendered_200_degree_views_are_found_to_the_image_circle(tmp_path):
     exact = Observations.load(tmp_path / "images_truth.json")
     assert cv2.imread(str(tmp_path / "images" / "train_00.png")).shape[:2] == (1280, 1024)
     assert max(len(v) for v in exact.views) > 300
+
+
+@pytest.mark.slow
+def test_a_view_inside_an_image_circle_loses_nothing_without_the_classic_detector(tmp_path):
+    """A fisheye's image circle sends its photos straight to the sector-based seeds: the
+    classic detector, which cannot follow the bent lines, would only have cost its time."""
+    s = synth.generate("fisheye200", 0.0, 0, 1)
+    view = s.truth["train_views"][0]
+    (name, image), = render.render_set("fisheye200", [(view["name"], np.array(view["rvec"] + view["tvec"]))])[0]
+    cv2.imwrite(str(tmp_path / name), image)
+    board = BoardSpec.parse("chessboard:22x22:50mm")
+    found = detect_file(tmp_path / name, board)
+    assert found.image_circle is not None and found.status == "used" and found.n_corners > 100
+    with_classic = detect_gray(cv2.imread(str(tmp_path / name), cv2.IMREAD_GRAYSCALE), board, classic_first=True)
+    np.testing.assert_array_equal(found.ids, with_classic.ids)
+    np.testing.assert_array_equal(found.points, with_classic.points)

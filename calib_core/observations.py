@@ -55,6 +55,12 @@ class Observations:
     def n_points(self) -> int:
         return sum(len(v) for v in self.views)
 
+    @property
+    def image_circle(self) -> tuple[float, float, float] | None:
+        """The lens's lit disc (cx, cy, radius) px where its image circle ends inside the
+        frame, as detection records it (``extra["image_circle"]``); None: lit to the border."""
+        return circle_from_json(self.extra.get("image_circle"))
+
     def view(self, name: str) -> View:
         for v in self.views:
             if v.name == name:
@@ -242,3 +248,12 @@ def _view(k: int, rv: Any) -> View:
     if frame is not None and (not isinstance(frame, str) or not frame):
         raise FormatError(f"{where}.frame: expected a non-empty string naming the moment the image was taken")
     return View(name, obj, img, ids, frame)
+
+
+def circle_from_json(doc: object) -> tuple[float, float, float] | None:
+    """``{"cx", "cy", "radius"}`` (``coverage.circle_json``) read back; None for anything else
+    (no circle recorded, or another tool's field)."""
+    try:
+        return float(doc["cx"]), float(doc["cy"]), float(doc["radius"])  # type: ignore[index]
+    except (TypeError, KeyError, ValueError):
+        return None

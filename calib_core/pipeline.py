@@ -19,6 +19,7 @@ from .fit_report import Diagnostics, ExcludedPoints, FitMetrics, SolverReport
 from .fitting import metrics, view_set
 from .fitting.solve import Data, SolveSettings, levenberg_marquardt
 from .methods import METHODS
+from .methods.auto import AutoSettings
 from .methods.common import Progress, no_progress, settings_from
 from .observations import Observations
 from .provenance import provenance
@@ -53,7 +54,7 @@ def usable_views(obs: Observations) -> tuple[Observations, list[dict[str, str]]]
             f"only {len(keep)} usable view(s); a calibration needs at least {MIN_VIEWS} views of the board "
             "at different angles"
         )
-    return Observations(obs.image_size, keep, obs.board), dropped
+    return Observations(obs.image_size, keep, obs.board, dict(obs.extra)), dropped
 
 
 def on_one_line(object_points: np.ndarray) -> bool:
@@ -106,6 +107,8 @@ def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Cal
     check_outlier_sigma(outlier_sigma)
     fit_fn, settings_cls = METHODS[method]
     s = settings_from(settings_cls, settings)
+    if isinstance(s, AutoSettings) and s.image_circle is None:
+        s.image_circle = observations.image_circle  # where the lens forms an image: the models must map it all
     progress = progress or no_progress
     t0 = time.perf_counter()
     obs, dropped = usable_views(observations)

@@ -34,6 +34,7 @@ from ..fitting.view_set import check_views
 from ..methods import METHODS
 from ..methods.common import Progress, named, no_progress, scaled
 from ..models.base import fitted_parameter_count
+from ..models.unproject import edge_pixels, unmapped_share
 from ..observations import Observations
 from ..pipeline import MIN_VIEWS, calibrate
 from . import quality
@@ -58,6 +59,7 @@ class MethodScores:
     quality: dict[str, Any]            # the paper's Table 7 (quality.py), or {"error": why}
     holdout: dict[str, float] | None = None   # holdout_rmse, _axis, _center, _edge, with a hold-out set
     cv: dict[str, Any] | None = None          # the folds over the views (None without cross-validation)
+    unmapped_edge: float = 0.0                # share of the image's edge its model maps no ray to
 
     @property
     def cv_validation_rmse(self) -> float | None:
@@ -215,7 +217,8 @@ def _scores(observations: Observations, name: str, splits: int, holdout: Observa
         fit=_fit_metrics(cal),
         views=[{"name": v.name, "rmse": v.rmse, "rmse_axis": v.rmse_axis, "n_points": v.n_points} for v in cal.views],
         n_params=fitted_parameter_count(cal.model),  # what the fit moved, not what the model could
-        quality=_quality(quality.geometric_quality, cal, observations))  # paper Table 7
+        quality=_quality(quality.geometric_quality, cal, observations),  # paper Table 7
+        unmapped_edge=unmapped_share(cal.model, edge_pixels(observations.image_size, observations.image_circle)))
     if holdout is not None:
         r, data, _ = validation_residuals(cal, holdout)
         s = metrics.summary(r, data.image_points, holdout.image_size)
@@ -257,7 +260,8 @@ def _verdict(ok: dict[str, MethodScores], cv_residuals: dict) -> tuple[str | Non
         for n in order:
             r, _, view = cv_residuals[n]
             ids, index = np.unique(view, return_inverse=True)
-            candidates.append(Candidate(n, n, np.bincount(index, np.sum(r * r, axis=1), minlength=len(ids))))
+            candidates.append(Candidate(n, n, np.bincount(index, np.sum(r * r, axis=1), minlength=len(ids)),
+                                        unmapped=ok[n].unmapped_edge))
             counts = np.bincount(index, minlength=len(ids))
         choice = choose(candidates, counts, how="validation error per axis over the folds of the views")
         best = choice.name

@@ -106,11 +106,3 @@ def circle_json(circle: Circle | None) -> dict[str, float] | None:
         return None
     cx, cy, r = circle
     return {"cx": round(cx, 1), "cy": round(cy, 1), "radius": round(r, 1)}
-
-
-def circle_from_json(doc: object) -> Circle | None:
-    """``circle_json``'s form read back; None for anything else (no circle recorded, or another tool's field)."""
-    try:
-        return float(doc["cx"]), float(doc["cy"]), float(doc["radius"])  # type: ignore[index]
-    except (TypeError, KeyError, ValueError):
-        return None

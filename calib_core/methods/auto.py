@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import ranges
-from ..errors import DataError
+from ..errors import DataError, SettingsError
 from ..fit_report import ChoiceReport
 from ..fitting.choice import Candidate, ModelChoice, choose
 from ..fitting.crossval import held_steps, linearised_view_errors
@@ -36,6 +36,7 @@ from ..fitting.init import initialise, poses_from_rays
 from ..fitting.solve import Data, SolveSettings, levenberg_marquardt, spread_views
 from ..models.base import CameraModel, fitted_parameter_count
 from ..models.camera import PINHOLE_MAX_ANGLE_DEG
+from ..models.unproject import edge_pixels, unmapped_share
 from .bspline import BSplineSettings, FieldScreen, field_design, field_screen, fit_core, fit_field
 from .common import Fit, Progress, named, no_progress, scaled
 from .opencv import pinhole_visible
@@ -44,9 +45,20 @@ from .opencv import pinhole_visible
 @dataclass
 class AutoSettings:
     decision_views: int = 20  # above this many views, the choice is made on this many (spread over the set)
+    # The lens's lit disc (cx, cy, radius) px where its image circle ends inside the frame; None: the whole
+    # frame is lit (``calibrate`` takes the observations' ``image_circle``, which detection writes).
+    image_circle: tuple[float, float, float] | None = None
 
     def validate(self) -> None:
         ranges.whole("decision_views", self.decision_views, 3, 1000)
+        if self.image_circle is not None:
+            if not isinstance(self.image_circle, (list, tuple)) or len(self.image_circle) != 3:
+                raise SettingsError(f"image_circle: expected [cx, cy, radius] in pixels, got "
+                                    f"{ranges.shown(self.image_circle)}")
+            cx, cy, r = self.image_circle
+            self.image_circle = (ranges.number("image_circle cx", cx, -1e6, 1e6),
+                                 ranges.number("image_circle cy", cy, -1e6, 1e6),
+                                 ranges.number("image_circle radius", r, 0, 1e6, above_low=True))
 
 
 @dataclass(frozen=True)
@@ -82,7 +94,7 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
     if all(f is None for f in fits):
         raise DataError("no model fits these corners: " + "; ".join(dict.fromkeys(e for e in why_not if e)))
     progress("model choice", 0.8 * share)
-    choice = _validate(specs, fits, why_not, sample)
+    choice = _validate(specs, fits, why_not, sample, edge_pixels(image_size, s.image_circle))
     if screen is not None:
         choice.how += (f"; fields were fitted only if one over the {screen.core} model predicted the views left out "
                        f"of it better than no field (it did{'' if screen.pays else ' not'}: "
@@ -213,16 +225,18 @@ def _screen(specs, cores: dict[str, Fit | None], sample: Data, image_size) -> Fi
         return None
 
 
-def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -> ModelChoice:
+def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data, edge: np.ndarray) -> ModelChoice:
     """Each candidate's error on each view left out of its fit
     (``crossval.linearised_view_errors``), on the corners every candidate
-    could use, and the one-standard-error choice among them."""
+    could use, and the one-standard-error choice among them; ``edge``: pixels
+    along the edge of the lit image, which a candidate must map rays to
+    (``choice.choose``)."""
     kept = np.logical_and.reduce([~f.excluded for f in fits if f is not None])
     counts = np.bincount(sample.view_index[kept], minlength=sample.n_views)
     candidates = []
     core_steps: dict[str, tuple[CameraModel, np.ndarray]] = {}  # core → (its model, its moves per view)
     for spec, fit, reason in zip(specs, fits, why_not, strict=True):
-        errors = None
+        errors, unmapped = None, 0.0
         if fit is not None:
             used = ~fit.excluded
             model = fit.result.model
@@ -231,12 +245,13 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data) -
                 held = None if core is None else held_steps(model, *core)
                 lovo = linearised_view_errors(model, fit.result.poses, sample.points(used), kept[used], held)
                 errors = lovo.errors
+                unmapped = unmapped_share(model, edge)
                 if spec.field is None:
                     core_steps[spec.core] = (model, lovo.steps)
             except np.linalg.LinAlgError:
                 reason = "its fit without some view is undetermined"
         candidates.append(Candidate(spec.name, spec.label, errors, reason,
-                                    None if fit is None else fitted_parameter_count(fit.result.model)))
+                                    None if fit is None else fitted_parameter_count(fit.result.model), unmapped=unmapped))
     how = (f"error per axis on each of the {sample.n_views} views left out of the fit (one Gauss-Newton step "
            "from the full fit without the view, or a refit where that step leaves the linear regime; then only "
            "the view's pose refit)")

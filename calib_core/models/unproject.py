@@ -46,18 +46,19 @@ def principal_branch(model: CameraModel, n_theta: int = N_THETA, n_phi: int = N_
     return theta, phi, xn.reshape(n_phi, n_theta, 2), uv.reshape(n_phi, n_theta, 2), branch
 
 
-def principal_samples(model: CameraModel) -> tuple[np.ndarray, np.ndarray]:
+def principal_samples(model: CameraModel, n_theta: int = N_THETA, n_phi: int = N_PHI) -> tuple[np.ndarray, np.ndarray]:
     """Normalised coordinates (M, 2) on the principal branch and their pixels (M, 2)."""
-    _, _, xn, uv, branch = principal_branch(model)
+    _, _, xn, uv, branch = principal_branch(model, n_theta, n_phi)
     return xn[branch], uv[branch]
 
 
 def normalised_of_pixel(model: CameraModel, uv: np.ndarray, tol: float = 1e-9,
-                        max_iterations: int = 60) -> np.ndarray:
+                        max_iterations: int = 60, grid: tuple[int, int] = (N_THETA, N_PHI)) -> np.ndarray:
     """Normalised coordinates (N, 2) of pixels (N, 2) on the principal branch;
-    NaN where Newton does not reach ``tol`` px or ends on a folded sheet."""
+    NaN where Newton does not reach ``tol`` px or ends on a folded sheet. ``grid``:
+    the polar grid of rays (θ, φ) Newton starts from."""
     uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
-    xs, us = principal_samples(model)
+    xs, us = principal_samples(model, *grid)
     if len(xs) == 0:
         return model.normalised_of_pixel(uv, tol, max_iterations)
     _, nearest = cKDTree(us).query(np.where(np.isfinite(uv), uv, 0.0))
@@ -68,3 +69,30 @@ def normalised_of_pixel(model: CameraModel, uv: np.ndarray, tol: float = 1e-9,
     xn[(np.linalg.norm(err, axis=-1) > max(100 * tol, 1e-6)) | ~(det > 0) | ~np.all(np.isfinite(uv), axis=1)] = np.nan
     return xn
 
+
+def edge_pixels(image_size: tuple[int, int], circle: tuple[float, float, float] | None = None,
+                per_side: int = 64) -> np.ndarray:
+    """Pixels (M, 2) along the edge of what the lens images: the frame's border, or where
+    its image circle (cx, cy, radius) ends inside the frame, the rim of the disc a few px
+    in, with the stretches of the border inside the disc."""
+    w, h = image_size
+    t = np.linspace(0.0, 1.0, per_side)
+    xs, ys = t * (w - 1), t * (h - 1)
+    border = np.concatenate([np.c_[xs, np.zeros_like(xs)], np.c_[xs, np.full_like(xs, h - 1)],
+                             np.c_[np.zeros_like(ys), ys], np.c_[np.full_like(ys, w - 1), ys]])
+    if circle is None:
+        return border
+    cx, cy, r = circle
+    inner = r - max(2.0, 0.01 * r)  # the rim itself is half lit
+    a = np.linspace(-np.pi, np.pi, 4 * per_side, endpoint=False)
+    rim = np.c_[cx + inner * np.cos(a), cy + inner * np.sin(a)]
+    in_frame = np.all((rim >= 0) & (rim <= [w - 1, h - 1]), axis=1)
+    in_disc = np.hypot(border[:, 0] - cx, border[:, 1] - cy) <= inner
+    return np.concatenate([rim[in_frame], border[in_disc]])
+
+
+def unmapped_share(model: CameraModel, pixels: np.ndarray) -> float:
+    """The share of ``pixels`` (M, 2) the model maps no ray to on its principal branch
+    (past a fold or a pole of its distortion)."""
+    xn = normalised_of_pixel(model, pixels, grid=(N_THETA // 2, N_PHI // 2))  # whether, not where to 1e-9: a coarser start
+    return float(np.mean(~np.all(np.isfinite(xn), axis=1))) if len(xn) else 0.0

@@ -98,10 +98,10 @@ def fitted_corners(cal: Calibration, obs: Observations) -> Observations:
 def coverage_of(obs: Observations) -> dict[str, Any]:
     """Where the corners fall in the image (``evaluation.coverage``), with the image size;
     inside the image circle the detection recorded, if the photos have one."""
-    from ..evaluation.coverage import circle_from_json, coverage
+    from ..evaluation.coverage import coverage
 
     points = np.concatenate([v.image_points for v in obs.views]) if obs.views else np.zeros((0, 2))
-    circle = circle_from_json(obs.extra.get("image_circle"))
+    circle = obs.image_circle
     return {**coverage(points, obs.image_size, circle=circle), "image_size": list(obs.image_size), "n_points": int(len(points))}
 
 

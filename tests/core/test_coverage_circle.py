@@ -13,7 +13,6 @@ from calib_core.evaluation.coverage import (
     RIM_DIRECTIONS,
     RIM_SUFFIX,
     cells_inside,
-    circle_from_json,
     coverage,
     coverage_warning,
 )
@@ -132,7 +131,7 @@ def test_detection_records_the_circle_and_advises_inside_it(tmp_path):
     assert det.observations is not None and len(det.observations.views) == 2
     # the rim is where any light is (a few px past the soft edge): close enough for cells of 80 px
     assert det.image_circle == pytest.approx(circle, abs=5)
-    assert circle_from_json(det.observations.extra["image_circle"]) == pytest.approx(circle, abs=5)
+    assert det.observations.image_circle == pytest.approx(circle, abs=5)
     assert det.coverage["empty_regions"] and set(det.coverage["empty_regions"]) <= RIM_NAMES
     assert not any("corner of the image" in w or "corner, " in w for w in det.warnings)
     again = coverage_of(Observations.from_json(det.observations.to_json()))   # the report's, from the file

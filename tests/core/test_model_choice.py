@@ -8,10 +8,12 @@ import functools
 import numpy as np
 import pytest
 
-from calib_core.evaluation.evaluate import validation_residuals
+from calib_core import synth
+from calib_core.evaluation.evaluate import evaluate, validation_residuals
 from calib_core.fit_report import CandidateScore
 from calib_core.fitting.choice import Candidate, choose
 from calib_core.fitting.metrics import rmse
+from calib_core.models.unproject import edge_pixels, unmapped_share
 from calib_core.pipeline import calibrate
 from calib_core.synth.opencv_lenses import around, fisheye_lens, rippled_lens, views_of, webcam_lens
 
@@ -108,6 +110,44 @@ def test_the_simplest_candidate_within_the_noise_of_the_best_is_chosen(errors, c
     choice = choose([Candidate(str(k), f"model {k}", e) for k, e in enumerate(errors)], np.full(n, 50))
     assert choice.chosen == chosen
     assert sum(c["chosen"] for c in choice.to_json()["candidates"]) == 1
+
+
+def test_a_model_that_maps_no_ray_to_part_of_the_image_is_left_out_while_another_maps_it_all():
+    best, close = per_view(0.090, 0.001, seed=1), per_view(0.100, 0.001)
+    folds = [Candidate("simple", "simple", close), Candidate("folds", "folds", best, unmapped=0.03)]
+    choice = choose(folds, np.full(10, 50))
+    assert choice.name == "simple"
+    left_out = choice.to_json()["candidates"][1]
+    assert left_out["validation_rmse"] is None and "3.0 % of the image's edge" in left_out["error"]
+    everyone = choose([Candidate("a", "a", close, unmapped=0.2), Candidate("b", "b", best, unmapped=0.03)],
+                      np.full(10, 50))
+    assert everyone.name == "b"   # when every candidate folds, the rule has nothing to prefer
+
+
+@pytest.mark.parametrize("seed", [9, 4])
+def test_the_default_never_takes_a_model_that_folds_inside_the_image(seed):
+    """Four views of a wide lens under heavy noise: the rational model's distortion turns back
+    just past its corners, at the edge of the image, while predicting the views left out a hair
+    better than Kannala-Brandt. The default takes a model that maps the whole image."""
+    s = synth.generate("fisheye", sigma=3.0, seed=seed, n_views=4)
+    edge = edge_pixels(s.train.image_size)
+    rational = calibrate(s.train, "rational")
+    assert unmapped_share(rational.model, edge) > 0     # the case this test is about
+    cal = calibrate(s.train, "auto")
+    assert unmapped_share(cal.model, edge) == 0
+    assert evaluate(cal, s.holdout)["rmse"] < evaluate(rational, s.holdout)["rmse"]
+    rows = {c.name: c for c in cal.diagnostics.model_choice.candidates}
+    assert "turns back inside the image" in rows["rational"].error
+
+
+def test_the_image_edge_follows_a_lens_image_circle():
+    w, h = 1280, 1024
+    assert len(edge_pixels((w, h))) == 256 and edge_pixels((w, h))[:, 0].max() == w - 1
+    circle = (640.0, 512.0, 600.0)   # cut by the top and bottom of the frame
+    rim = edge_pixels((w, h), circle)
+    assert np.all(np.hypot(rim[:, 0] - 640, rim[:, 1] - 512) <= 600 - 2 + 1e-9)
+    assert np.all((rim >= 0) & (rim <= [w - 1, h - 1]))
+    assert (rim[:, 1] == 0).any() and (rim[:, 1] == h - 1).any()   # the lit stretches of the border
 
 
 @pytest.mark.parametrize("method, settings, tolerance", [

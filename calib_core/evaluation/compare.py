@@ -30,13 +30,15 @@ from ..fit_report import FitMetrics
 from ..fitting import metrics
 from ..fitting.choice import Candidate, choose
 from ..fitting.crossval import folds
+from ..fitting.init import initialise
 from ..fitting.view_set import check_views
 from ..methods import METHODS
+from ..methods.auto import past_pinhole
 from ..methods.common import Progress, named, no_progress, scaled
 from ..models.base import fitted_parameter_count
-from ..models.unproject import edge_pixels, unmapped_share
+from ..models.unproject import lit_edge, unmapped_share
 from ..observations import Observations
-from ..pipeline import MIN_VIEWS, calibrate
+from ..pipeline import MIN_VIEWS, calibrate, to_data, usable_views
 from . import quality
 from .evaluate import validation_residuals
 
@@ -199,10 +201,11 @@ def compare(observations: Observations, methods: list[str] | None = None, splits
     progress = progress or no_progress
     out = Comparison({}, n_views, observations.n_points, splits, _quality(quality.raw_quality, observations))
     cv_residuals: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    edge = _lit_edge(observations)
     for i, name in enumerate(methods):
         part = named(scaled(progress, i / len(methods), (i + 1) / len(methods)), name)
         try:
-            out.methods[name] = _scores(observations, name, splits, holdout, part, cv_residuals)
+            out.methods[name] = _scores(observations, name, splits, holdout, part, cv_residuals, edge)
         except CalibError as exc:  # a method that cannot handle these corners says why
             out.methods[name] = MethodFailure(str(exc))
     out.verdict, out.verdict_detail = _verdict(out.scored, cv_residuals)
@@ -211,14 +214,15 @@ def compare(observations: Observations, methods: list[str] | None = None, splits
 
 
 def _scores(observations: Observations, name: str, splits: int, holdout: Observations | None, part: Progress,
-            cv_residuals: dict) -> MethodScores:
+            cv_residuals: dict, edge: np.ndarray | None) -> MethodScores:
+    """``edge``: the pixels its model must map rays to (``unproject.lit_edge``; None: not known)."""
     cal = calibrate(observations, name, scaled(part, 0.0, 0.5 if splits else 0.9))
     scores = MethodScores(
         fit=_fit_metrics(cal),
         views=[{"name": v.name, "rmse": v.rmse, "rmse_axis": v.rmse_axis, "n_points": v.n_points} for v in cal.views],
         n_params=fitted_parameter_count(cal.model),  # what the fit moved, not what the model could
         quality=_quality(quality.geometric_quality, cal, observations),  # paper Table 7
-        unmapped_edge=unmapped_share(cal.model, edge_pixels(observations.image_size, observations.image_circle)))
+        unmapped_edge=0.0 if edge is None else unmapped_share(cal.model, edge))
     if holdout is not None:
         r, data, _ = validation_residuals(cal, holdout)
         s = metrics.summary(r, data.image_points, holdout.image_size)
@@ -228,6 +232,17 @@ def _scores(observations: Observations, name: str, splits: int, holdout: Observa
         part(f"cross-validation over {splits} splits", 0.5)
         scores.cv, cv_residuals[name] = _cross_validate(observations, name, splits)
     return scores
+
+
+def _lit_edge(observations: Observations) -> np.ndarray | None:
+    """The pixels every method's model must map rays to, as ``method="auto"`` asks (``lit_edge``)."""
+    obs, _ = usable_views(observations)
+    data, _, _ = to_data(obs)
+    try:
+        wide = bool(past_pinhole(initialise(data, obs.image_size).model, data).any())
+    except (CalibError, np.linalg.LinAlgError, FloatingPointError):  # no first camera: the methods will say why
+        return None
+    return lit_edge(observations.image_size, observations.image_circle, wide)
 
 
 def _fit_metrics(cal: Calibration) -> FitMetrics:

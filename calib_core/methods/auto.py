@@ -36,7 +36,7 @@ from ..fitting.init import initialise, poses_from_rays
 from ..fitting.solve import Data, SolveSettings, levenberg_marquardt, spread_views
 from ..models.base import CameraModel, fitted_parameter_count
 from ..models.camera import PINHOLE_MAX_ANGLE_DEG
-from ..models.unproject import edge_pixels, unmapped_share
+from ..models.unproject import lit_edge, unmapped_share
 from .bspline import BSplineSettings, FieldScreen, field_design, field_screen, fit_core, fit_field
 from .common import Fit, Progress, named, no_progress, scaled
 from .opencv import pinhole_visible
@@ -85,8 +85,7 @@ WIDE_CANDIDATES = (Spec("fisheye", "Kannala-Brandt model", "fisheye", None),
 def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit:
     sample = data if data.n_views <= s.decision_views else spread_views(data, s.decision_views)
     init = initialise(sample, image_size)  # cached, before the candidates share it from two threads
-    with np.errstate(invalid="ignore"):  # a pixel with no ray under the initial camera is not known to be past
-        past = init.model.rays(data.image_points)[:, 2] < np.cos(np.radians(PINHOLE_MAX_ANGLE_DEG))
+    past = past_pinhole(init.model, data)
     wide = bool(past.any())
     specs = WIDE_CANDIDATES if wide else CANDIDATES
     share = 1.0 if sample is data else 0.8
@@ -94,7 +93,7 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
     if all(f is None for f in fits):
         raise DataError("no model fits these corners: " + "; ".join(dict.fromkeys(e for e in why_not if e)))
     progress("model choice", 0.8 * share)
-    choice = _validate(specs, fits, why_not, sample, edge_pixels(image_size, s.image_circle))
+    choice = _validate(specs, fits, why_not, sample, lit_edge(image_size, s.image_circle, wide))
     if screen is not None:
         choice.how += (f"; fields were fitted only if one over the {screen.core} model predicted the views left out "
                        f"of it better than no field (it did{'' if screen.pays else ' not'}: "
@@ -111,6 +110,12 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
                             named(scaled(progress, share, 1.0), f"{spec.label}, on all {data.n_views} views"))
     settings = {**fit.settings, "chosen": spec.name, "decision_views": s.decision_views}
     return dataclasses.replace(fit, settings=settings, model_choice=ChoiceReport.from_json(choice.to_json()))
+
+
+def past_pinhole(model: CameraModel, data: Data) -> np.ndarray:
+    """(N,) bool: the corners an initial camera ``model`` puts past the pinhole's reach."""
+    with np.errstate(invalid="ignore"):  # a pixel with no ray under the initial camera is not known to be past
+        return model.rays(data.image_points)[:, 2] < np.cos(np.radians(PINHOLE_MAX_ANGLE_DEG))
 
 
 def _on_all_views(spec: Spec, fit: Fit, core_fit: Fit | None, data: Data, image_size, progress: Progress) -> Fit:
@@ -225,12 +230,13 @@ def _screen(specs, cores: dict[str, Fit | None], sample: Data, image_size) -> Fi
         return None
 
 
-def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data, edge: np.ndarray) -> ModelChoice:
+def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data,
+              edge: np.ndarray | None) -> ModelChoice:
     """Each candidate's error on each view left out of its fit
     (``crossval.linearised_view_errors``), on the corners every candidate
     could use, and the one-standard-error choice among them; ``edge``: pixels
     along the edge of the lit image, which a candidate must map rays to
-    (``choice.choose``)."""
+    (``choice.choose``; None: not known)."""
     kept = np.logical_and.reduce([~f.excluded for f in fits if f is not None])
     counts = np.bincount(sample.view_index[kept], minlength=sample.n_views)
     candidates = []
@@ -245,7 +251,7 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data, e
                 held = None if core is None else held_steps(model, *core)
                 lovo = linearised_view_errors(model, fit.result.poses, sample.points(used), kept[used], held)
                 errors = lovo.errors
-                unmapped = unmapped_share(model, edge)
+                unmapped = 0.0 if edge is None else unmapped_share(model, edge)
                 if spec.field is None:
                     core_steps[spec.core] = (model, lovo.steps)
             except np.linalg.LinAlgError:

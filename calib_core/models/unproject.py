@@ -91,6 +91,13 @@ def edge_pixels(image_size: tuple[int, int], circle: tuple[float, float, float] 
     return np.concatenate([rim[in_frame], border[in_disc]])
 
 
+def lit_edge(image_size: tuple[int, int], circle: tuple[float, float, float] | None, wide: bool) -> np.ndarray | None:
+    """The pixels a model must map rays to (``edge_pixels``), or None where that is not known:
+    past the pinhole's reach (``wide``) with no image circle recorded, a lens's image circle
+    often ends inside the frame and leaves its corners unlit."""
+    return None if wide and circle is None else edge_pixels(image_size, circle)
+
+
 def unmapped_share(model: CameraModel, pixels: np.ndarray) -> float:
     """The share of ``pixels`` (M, 2) the model maps no ray to on its principal branch
     (past a fold or a pole of its distortion)."""

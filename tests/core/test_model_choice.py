@@ -13,7 +13,7 @@ from calib_core.evaluation.evaluate import evaluate, validation_residuals
 from calib_core.fit_report import CandidateScore
 from calib_core.fitting.choice import Candidate, choose
 from calib_core.fitting.metrics import rmse
-from calib_core.models.unproject import edge_pixels, unmapped_share
+from calib_core.models.unproject import edge_pixels, lit_edge, unmapped_share
 from calib_core.pipeline import calibrate
 from calib_core.synth.opencv_lenses import around, fisheye_lens, rippled_lens, views_of, webcam_lens
 
@@ -148,6 +148,8 @@ def test_the_image_edge_follows_a_lens_image_circle():
     assert np.all(np.hypot(rim[:, 0] - 640, rim[:, 1] - 512) <= 600 - 2 + 1e-9)
     assert np.all((rim >= 0) & (rim <= [w - 1, h - 1]))
     assert (rim[:, 1] == 0).any() and (rim[:, 1] == h - 1).any()   # the lit stretches of the border
+    assert lit_edge((w, h), None, wide=True) is None      # past 180° the frame's corners may be dark: not known
+    assert len(lit_edge((w, h), circle, wide=True)) == len(rim)
 
 
 @pytest.mark.parametrize("method, settings, tolerance", [

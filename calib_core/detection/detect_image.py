@@ -97,9 +97,9 @@ def detect_file(path: str | Path, board: BoardSpec, name: str | None = None, mod
     With a camera ``model`` (a first calibration's), every board corner is also predicted
     through it and confirmed (``model_guided``)."""
     # A fisheye whose image circle ends inside the frame bends a board's lines more than
-    # OpenCV's classic detector follows: on the 35 such photos held (BabelCalib ov_plane,
-    # rendered 200° views) it found no board and took 0.55-0.7 s a photo to say so. The
-    # sector-based seeds that follow it find those boards, and growth covers them.
+    # OpenCV's classic detector follows, which then takes its longest to find nothing
+    # (docs/detection.md, "Photos inside an image circle"): the sector-based seeds that
+    # follow it find those boards, and growth covers them.
     return on_file(path, name, lambda gray, circle: detect_gray(gray, board, model, classic_first=circle is None))
 
 

@@ -14,9 +14,8 @@ uneven set has a large standard error and so gets the simpler model.
 A candidate whose distortion turns back inside the image (a polynomial or
 rational model past the reach of its corners: it maps no ray to part of the
 image's edge) is left out while another maps all of it: whatever its error
-on the views, it cannot serve the image's corners (measured: the rational
-model on 4 views of a fisheye, 0.1 % ahead of Kannala–Brandt on the views
-left out, predicted the whole image 9× worse).
+on the views, it cannot serve the image's corners, which few views may not
+reach (docs/model-choice.md, "A model must map the whole image").
 """
 from __future__ import annotations
 

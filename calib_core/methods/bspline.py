@@ -561,10 +561,8 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
     model = _fitted(problem, breaks, s.lambda_reg, lam, start, samples, response, weights)
     curve = []
     final = SolveSettings(s.max_iterations, s.ftol, gauss_newton_trials=True)
-    # A grid's joint fit scores it; it converges in 5-40 iterations, but on a few views under
-    # heavy noise a field over a core crawls its principal point's flat valley to the 500th
-    # (freeform lens, 5 views, σ = 3 px: two grids at 2.4 and 3.2 s). The chosen grid's fit
-    # goes on to convergence.
+    # A grid's joint fit only scores it: on a few noisy views a field over a core can crawl its
+    # principal point's flat valley for hundreds of iterations. The chosen grid's fit goes on.
     scoring = dataclasses.replace(final, max_iterations=min(final.max_iterations, GRID_FIT_ITERATIONS))
     joint_fits = {}  # (breaks, λ) → the joint fit made while choosing the grid
     if auto:

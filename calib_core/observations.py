@@ -15,6 +15,8 @@ import numpy as np
 
 from .errors import FormatError
 
+Circle = tuple[float, float, float]  # a lens's image circle: cx, cy, radius in pixels
+
 FORMAT = "freecal.observations/1"
 
 
@@ -56,7 +58,7 @@ class Observations:
         return sum(len(v) for v in self.views)
 
     @property
-    def image_circle(self) -> tuple[float, float, float] | None:
+    def image_circle(self) -> Circle | None:
         """The lens's lit disc (cx, cy, radius) px where its image circle ends inside the
         frame, as detection records it (``extra["image_circle"]``); None: lit to the border."""
         return circle_from_json(self.extra.get("image_circle"))
@@ -250,7 +252,7 @@ def _view(k: int, rv: Any) -> View:
     return View(name, obj, img, ids, frame)
 
 
-def circle_from_json(doc: object) -> tuple[float, float, float] | None:
+def circle_from_json(doc: object) -> Circle | None:
     """``{"cx", "cy", "radius"}`` (``coverage.circle_json``) read back; None for anything else
     (no circle recorded, or another tool's field)."""
     try:

@@ -12,8 +12,9 @@ from typing import Any
 
 import numpy as np
 
+from ..observations import Circle
+
 GRID_X = 8  # histogram cells across; down follows the aspect ratio
-Circle = tuple[float, float, float]  # a lens's image circle: cx, cy, radius in pixels
 INSIDE_SHARE = 0.5  # a cell counts when at least this share of it lies inside the image circle
 SAMPLES = 8  # per cell side, to measure that share
 

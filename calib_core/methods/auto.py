@@ -37,6 +37,7 @@ from ..fitting.solve import Data, SolveSettings, levenberg_marquardt, spread_vie
 from ..models.base import CameraModel, fitted_parameter_count
 from ..models.camera import PINHOLE_MAX_ANGLE_DEG
 from ..models.unproject import lit_edge, unmapped_share
+from ..observations import Circle
 from .bspline import BSplineSettings, FieldScreen, field_design, field_screen, fit_core, fit_field
 from .common import Fit, Progress, named, no_progress, scaled
 from .opencv import pinhole_visible
@@ -47,7 +48,7 @@ class AutoSettings:
     decision_views: int = 20  # above this many views, the choice is made on this many (spread over the set)
     # The lens's lit disc (cx, cy, radius) px where its image circle ends inside the frame; None: the whole
     # frame is lit (``calibrate`` takes the observations' ``image_circle``, which detection writes).
-    image_circle: tuple[float, float, float] | None = None
+    image_circle: Circle | None = None
 
     def validate(self) -> None:
         ranges.whole("decision_views", self.decision_views, 3, 1000)

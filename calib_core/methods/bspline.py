@@ -48,6 +48,7 @@ from ..models.base import CameraModel
 from ..models.bspline import GAUGE_WEIGHT, BSplineModel, gauge_rows
 from ..models.bspline_basis import BSplineField, clamped_knots
 from ..models.hybrid import HybridModel
+from ..models.unproject import frame_border
 from .common import Fit, Progress, no_progress
 from .fisheye import FisheyeSettings, fit_fisheye
 from .opencv import OpenCVSettings, RationalSettings, fit_opencv
@@ -184,7 +185,7 @@ def ideal_samples(model, poses, data: Data, base: str):
 def ideal_footprint(init_model, intrinsics: np.ndarray, base: str, image_size) -> np.ndarray:
     """The image border (M, 2) in ideal pixels, where the initial camera puts it
     (rays past the pinhole's reach clipped to it)."""
-    rays = init_model.rays(_border(image_size))
+    rays = init_model.rays(frame_border(image_size))
     rays = rays[np.all(np.isfinite(rays), axis=1)]
     if base == "pinhole":
         theta = np.minimum(np.arccos(np.clip(rays[:, 2], -1, 1)), np.radians(PINHOLE_MAX_ANGLE_DEG))
@@ -194,16 +195,6 @@ def ideal_footprint(init_model, intrinsics: np.ndarray, base: str, image_size) -
         xn = camera.normalise(rays, base)
     fx, fy, cx, cy, s = intrinsics
     return np.column_stack([fx * xn[:, 0] + s * xn[:, 1] + cx, fy * xn[:, 1] + cy])
-
-
-def _border(image_size, n: int = 200) -> np.ndarray:
-    """The image border as a closed polygon (4n, 2), clockwise from the top-left."""
-    w, h = image_size
-    t = np.linspace(0, 1, n, endpoint=False)
-    return np.concatenate([
-        np.column_stack([t * (w - 1), np.zeros_like(t)]), np.column_stack([np.full_like(t, w - 1), t * (h - 1)]),
-        np.column_stack([(1 - t) * (w - 1), np.full_like(t, h - 1)]), np.column_stack([np.zeros_like(t), (1 - t) * (h - 1)]),
-    ])
 
 
 def _padded_box(pts: np.ndarray):
@@ -294,8 +285,8 @@ def core_field_problem(data: Data, image_size, s: BSplineSettings, core: str, pr
 
     gauge_point = (float(fitted.intrinsics[2]), float(fitted.intrinsics[3]))
     pc = camera.transform(fit.result.poses, data.view_index[ok], data.object_points[ok])
-    domain = _padded_box(np.vstack([_border(image_size), fitted.project(pc)]))
-    problem = FieldProblem(domain, _border(image_size), gauge_point, lambda field: np.zeros((field.n_u, field.n_v, 2)), samples, make)
+    domain = _padded_box(np.vstack([frame_border(image_size), fitted.project(pc)]))
+    problem = FieldProblem(domain, frame_border(image_size), gauge_point, lambda field: np.zeros((field.n_u, field.n_v, 2)), samples, make)
     return problem, fitted, fit.result.poses, ok, fit.excluded_reason
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..observations import Circle
 from . import camera
 from .base import CameraModel, refine_preimage
 
@@ -70,16 +71,22 @@ def normalised_of_pixel(model: CameraModel, uv: np.ndarray, tol: float = 1e-9,
     return xn
 
 
-def edge_pixels(image_size: tuple[int, int], circle: tuple[float, float, float] | None = None,
-                per_side: int = 64) -> np.ndarray:
+def frame_border(image_size: tuple[int, int], n: int = 200) -> np.ndarray:
+    """The image border as a closed polygon (4n, 2), clockwise from the top-left."""
+    w, h = image_size
+    t = np.linspace(0, 1, n, endpoint=False)
+    return np.concatenate([
+        np.column_stack([t * (w - 1), np.zeros_like(t)]), np.column_stack([np.full_like(t, w - 1), t * (h - 1)]),
+        np.column_stack([(1 - t) * (w - 1), np.full_like(t, h - 1)]), np.column_stack([np.zeros_like(t), (1 - t) * (h - 1)]),
+    ])
+
+
+def edge_pixels(image_size: tuple[int, int], circle: Circle | None = None, per_side: int = 64) -> np.ndarray:
     """Pixels (M, 2) along the edge of what the lens images: the frame's border, or where
     its image circle (cx, cy, radius) ends inside the frame, the rim of the disc a few px
     in, with the stretches of the border inside the disc."""
     w, h = image_size
-    t = np.linspace(0.0, 1.0, per_side)
-    xs, ys = t * (w - 1), t * (h - 1)
-    border = np.concatenate([np.c_[xs, np.zeros_like(xs)], np.c_[xs, np.full_like(xs, h - 1)],
-                             np.c_[np.zeros_like(ys), ys], np.c_[np.full_like(ys, w - 1), ys]])
+    border = frame_border(image_size, per_side)
     if circle is None:
         return border
     cx, cy, r = circle
@@ -91,7 +98,7 @@ def edge_pixels(image_size: tuple[int, int], circle: tuple[float, float, float] 
     return np.concatenate([rim[in_frame], border[in_disc]])
 
 
-def lit_edge(image_size: tuple[int, int], circle: tuple[float, float, float] | None, wide: bool) -> np.ndarray | None:
+def lit_edge(image_size: tuple[int, int], circle: Circle | None, wide: bool) -> np.ndarray | None:
     """The pixels a model must map rays to (``edge_pixels``), or None where that is not known:
     past the pinhole's reach (``wide``) with no image circle recorded, a lens's image circle
     often ends inside the frame and leaves its corners unlit."""

@@ -65,6 +65,12 @@ async function refresh() {
     }
     if (state.jobId) {
       const job = await api.job(state.jobId);
+      // fetched after the list: where it moved on since, the list shows it as it is now (never "running" beside results)
+      const listed = jobs.jobs.findIndex((j) => j.id === job.id);
+      if (listed >= 0 && jobs.jobs[listed].state !== job.state) {
+        jobs.jobs[listed] = job;
+        renderJobs(jobs.jobs, state.jobId, selectJob, sets.sets);
+      }
       renderJob(job, cancel, state.sets);
       if (job.state === "done" && state.shownJob !== job.id) {
         state.shownJob = job.id;

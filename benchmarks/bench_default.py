@@ -2,8 +2,9 @@
 fixed configuration in hindsight, on BabelCalib's fisheye, its speed beside the
 paper's fixed grid and mrcal's splined model, and how its time scales.
 
-    python -m benchmarks default [--sections accuracy,babelcalib,speed,scaling]
+    python -m benchmarks default [--sections accuracy,babelcalib,speed,scaling,screen]
         [--kinds radial,...] [--seeds 0,1,2] [--views 10] [--sigma 0.3] [--quick] [--repeat 3]
+        [--screen-kinds ...] [--screen-seeds 7,8,9] [--screen-views 3,5,7,10] [--screen-sigmas 0.1,1]
 
 - accuracy: per synthetic kind and seed, the default's hold-out rmse (model held,
   poses refit: ``calib_core.evaluation.evaluate``) against a grid search of every fixed
@@ -16,6 +17,9 @@ paper's fixed grid and mrcal's splined model, and how its time scales.
   the default and the paper's fixed 10 × 10 grid against mrcal's splined model, both its routes
   (``mrcal_bridge``; skipped without mrcal's venv: ``scripts/ensure-mrcal.sh``). Targets: the
   default no slower than mrcal's quicker route; the fixed grid ≥ 3× faster than it.
+- screen: the default with the field screen on any number of views against every field
+  fitted, by the number of views (seeds the tables never use): where the screen turns away
+  fields that would predict the views held out better (``auto.SCREEN_MIN_VIEWS``).
 - scaling: the fixed grid and the default from 10 to 160 views of the asymmetric
   lens. Targets: 100 views under 5 s for the default; the fixed grid's time linear
   in corners (log-log slope ≤ 1.1).
@@ -272,7 +276,57 @@ def scaling(a) -> None:
     print(f"- default at 100 views: {at100:.2f} s CPU (≤ {TARGET_100_VIEWS:g} s): {verdict(at100 <= TARGET_100_VIEWS)}\n")
 
 
-SECTIONS = {"accuracy": accuracy, "babelcalib": babelcalib_section, "speed": speed, "scaling": scaling}
+# -- the field screen on few views ------------------------------------------------------
+
+def screened_and_not(kind: str, seed: int, views: int, sigma: float) -> dict:
+    """The default's hold-out rmse, choice and CPU on one set, with the field screen on any
+    number of views ("screened") and with every field fitted ("every field")."""
+    from calib_core.methods import auto
+    s = dataset(kind, seed, views, sigma)
+    out = {}
+    kept = auto.SCREEN_MIN_VIEWS
+    for label, min_views in (("screened", 0), ("every field", 10**9)):
+        auto.SCREEN_MIN_VIEWS = min_views
+        try:
+            cal, cpu = timed(s.train, "auto")
+            out[label] = (evaluate(cal, s.holdout)["rmse"], cal.settings["chosen"], cpu)
+        finally:
+            auto.SCREEN_MIN_VIEWS = kept
+    return out
+
+
+def screen_section(a) -> None:
+    """Whether the field screen turns away fields that pay, by the number of views."""
+    from calib_core.methods.auto import SCREEN_MIN_VIEWS
+    print(f"## The field screen by views: kinds {', '.join(a.screen_kinds)}, seeds {a.screen_seeds}, "
+          f"views {a.screen_views}, σ {a.screen_sigmas} px\n")
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[var] = "1"
+    sets = [(k, sd, v, sg) for k in a.screen_kinds for sd in a.screen_seeds for v in a.screen_views
+            for sg in a.screen_sigmas]
+    with cf.ProcessPoolExecutor(2, mp_context=mp.get_context("spawn"), initializer=one_thread) as pool:
+        results = dict(zip(sets, pool.map(screened_and_not, *map(list, zip(*sets, strict=True))), strict=True))
+    rows, changed = [], []
+    for views in sorted(set(a.screen_views)):
+        part = {key: r for key, r in results.items() if key[2] == views}
+        ratio = np.array([r["every field"][0] / r["screened"][0] for r in part.values()])
+        better, worse = int(np.sum(ratio < 0.95)), int(np.sum(ratio > 1.05))
+        cpu = [sum(r[label][2] for r in part.values()) for label in ("screened", "every field")]
+        rows.append([views, len(part), sum(r["every field"][1] != r["screened"][1] for r in part.values()), better,
+                     worse, f"{np.exp(np.mean(np.log(ratio))):.3f}", f"{cpu[0]:.0f} → {cpu[1]:.0f}",
+                     "every field" if views < SCREEN_MIN_VIEWS else "screened"])
+        changed += [(key, r) for key, r in part.items() if r["every field"][1] != r["screened"][1]]
+    markdown(["views", "sets", "choice changed", "every field better (> 5 %)", "every field worse (> 5 %)",
+              "hold-out, every field / screened (geometric mean)", "CPU s, screened → every field",
+              "the default"], rows)
+    for (k, sd, v, sg), r in changed:
+        print(f"- {k}, seed {sd}, {v} views, σ = {sg:g}: screened {r['screened'][1]} {r['screened'][0]:.4f} px, "
+              f"every field {r['every field'][1]} {r['every field'][0]:.4f} px")
+    print()
+
+
+SECTIONS = {"accuracy": accuracy, "babelcalib": babelcalib_section, "speed": speed, "scaling": scaling,
+            "screen": screen_section}
 
 
 def main(argv: list[str]) -> int:
@@ -284,12 +338,19 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--sigma", type=float, default=0.3, help="accuracy: corner noise [px]")
     ap.add_argument("--quick", action="store_true", help="accuracy: intervals {6, 10, 15} × λ {1, 100} only")
     ap.add_argument("--repeat", type=int, default=3, help="speed: rounds; each figure is the lowest of them")
+    ap.add_argument("--screen-kinds", default=",".join(synth.ALL_KINDS), help="screen: synthetic kinds")
+    ap.add_argument("--screen-seeds", default="7,8,9", help="screen: seeds")
+    ap.add_argument("--screen-views", default="3,5,7,10", help="screen: training views, each")
+    ap.add_argument("--screen-sigmas", default="0.1,1", help="screen: corner noise [px], each")
     a = ap.parse_args(argv)
     sections = a.sections.split(",")
     unknown = set(sections) - set(SECTIONS)
     if unknown:
         ap.error(f"unknown section(s) {sorted(unknown)}; expected {', '.join(SECTIONS)}")
     a.kinds, a.seeds = a.kinds.split(","), [int(s) for s in a.seeds.split(",")]
+    a.screen_kinds, a.screen_seeds = a.screen_kinds.split(","), [int(s) for s in a.screen_seeds.split(",")]
+    a.screen_views = [int(v) for v in a.screen_views.split(",")]
+    a.screen_sigmas = [float(v) for v in a.screen_sigmas.split(",")]
     bad = set(a.kinds) - set(synth.KINDS)
     if bad:
         ap.error(f"unknown kind(s) {sorted(bad)}; expected {', '.join(synth.KINDS)}")

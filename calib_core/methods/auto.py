@@ -5,9 +5,10 @@ Candidates, simplest first: OpenCV's 5-coefficient model, Kannala–Brandt,
 the rational model, the paper's B-spline field, and a field over the
 rational core. A lens past the pinhole's reach (corners beyond ~89° off
 axis) gets Kannala–Brandt and a field over it instead, the only models that
-represent every corner. The fields are fitted only where a field over the
-most flexible core predicts views left out of it better than no field
-(``bspline.field_screen``). Every candidate fitted is scored on each view
+represent every corner. From SCREEN_MIN_VIEWS views on, the fields are fitted
+only where a field over the most flexible core predicts views left out of it
+better than no field (``bspline.field_screen``); on fewer views every field is
+fitted. Every candidate fitted is scored on each view
 left out of its fit (``crossval.linearised_view_errors``; for a field over
 a core, the view leaves the core's own fit too) and the simplest within the
 noise of the lowest is kept (``choice.choose``); it is returned as its own
@@ -74,6 +75,12 @@ class Spec:
     field: str | None
 
 
+# The field screen holds the core's camera, which few views pin down least, and judges on as
+# few views left out: below this many it turned fields away that predicted the views held out
+# up to 60x better (docs/model-choice.md, "The field screen on few views"), so every field is
+# fitted, which on such small sets costs a second or two.
+SCREEN_MIN_VIEWS = 8
+
 CANDIDATES = (Spec("zhang", "OpenCV 5-coefficient model", "zhang", None),
               Spec("fisheye", "Kannala-Brandt model", "fisheye", None),
               Spec("rational", "OpenCV rational model", "rational", None),
@@ -99,6 +106,9 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
         choice.how += (f"; fields were fitted only if one over the {screen.core} model predicted the views left out "
                        f"of it better than no field (it did{'' if screen.pays else ' not'}: "
                        f"{screen.gain:.2g} ± {screen.standard_error:.2g} px² per corner)")
+    elif sample.n_views < SCREEN_MIN_VIEWS and any(sp.field is not None for sp in specs):
+        choice.how += (f"; with {sample.n_views} views (fewer than {SCREEN_MIN_VIEWS}) every field was fitted, "
+                       "as too few views are left out to tell beforehand whether one pays")
     if wide:
         choice.how += f"; {int(past.sum())} corners lie past the pinhole's reach, so only models that reach them ran"
     if sample is not data:
@@ -174,9 +184,9 @@ def _fit_spec(spec: Spec, data: Data, image_size, cores: dict[str, Fit | None], 
 def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
     """Each candidate's fit (None if it cannot fit these corners, or if no
     field pays), why not, and the field screen (None when not run).
-    The parametric models fit first. A field is fitted only where one over
-    the most flexible core predicts the views left out of it better than no
-    field (``field_screen``): on a lens its parametric models represent, the
+    The parametric models fit first. From SCREEN_MIN_VIEWS views on, a field
+    is fitted only where one over the most flexible core predicts the views
+    left out of it better than no field (``field_screen``): on a lens its parametric models represent, the
     fields cost most of the choice and win nothing. Of the fields, the one
     with no parametric core (the paper's) depends on no other: it runs on
     the second core meanwhile (the heavy parts, the compiled kernels and
@@ -220,10 +230,11 @@ def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
 
 def _screen(specs, cores: dict[str, Fit | None], sample: Data, image_size) -> FieldScreen | None:
     """The field screen over the core of the last field-over-core candidate
-    (the most flexible core), or None when that core did not fit."""
+    (the most flexible core), or None when that core did not fit or the views
+    are fewer than SCREEN_MIN_VIEWS."""
     core = next((spec.core for spec in reversed(specs) if spec.field is not None and spec.core), None)
     core_fit = None if core is None else cores.get(core)
-    if core is None or core_fit is None:
+    if core is None or core_fit is None or sample.n_views < SCREEN_MIN_VIEWS:
         return None
     try:
         return field_screen(sample, image_size, core, core_fit)

@@ -186,8 +186,9 @@ def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
     field pays), why not, and the field screen (None when not run).
     The parametric models fit first. From SCREEN_MIN_VIEWS views on, a field
     is fitted only where one over the most flexible core predicts the views
-    left out of it better than no field (``field_screen``): on a lens its parametric models represent, the
-    fields cost most of the choice and win nothing. Of the fields, the one
+    left out of it better than no field (``field_screen``): on a lens its
+    parametric models represent, the fields cost most of the choice and win
+    nothing. Of the fields, the one
     with no parametric core (the paper's) depends on no other: it runs on
     the second core meanwhile (the heavy parts, the compiled kernels and
     LAPACK, release the GIL), reporting no progress of its own."""

@@ -170,6 +170,7 @@ class CandidateScore:
     within_noise: bool | None = None
     n_params: int | None = None
     error: str = ""  # why it was not validated
+    beaten_by: str = ""  # the simpler candidate that predicts better, which rules it out
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"name": self.name, "label": self.label, "chosen": self.chosen,
@@ -178,6 +179,8 @@ class CandidateScore:
                                "n_params": self.n_params}
         if self.error:
             out["error"] = self.error
+        if self.beaten_by:
+            out["beaten_by"] = self.beaten_by
         return out
 
     @classmethod
@@ -195,7 +198,7 @@ class CandidateScore:
                    text(doc.get("label", ""), f"{where}.label"), chosen,
                    score("validation_rmse"), score("validation_mse"), score("standard_error_rmse"), within,
                    None if n_params is None else whole(n_params, f"{where}.n_params"),
-                   text(doc.get("error", ""), f"{where}.error"))
+                   text(doc.get("error", ""), f"{where}.error"), text(doc.get("beaten_by", ""), f"{where}.beaten_by"))
 
 
 @dataclass(frozen=True)
@@ -214,6 +217,17 @@ class ChoiceReport:
     @property
     def chosen_candidate(self) -> CandidateScore:
         return next(c for c in self.candidates if c.chosen)
+
+    def status(self, c: CandidateScore) -> str:
+        """A candidate's standing in the choice, in words (the score tables' last column)."""
+        if c.chosen:
+            return "chosen"
+        if c.error:
+            return c.error
+        if c.beaten_by:
+            simpler = next((o.label for o in self.candidates if o.name == c.beaten_by), c.beaten_by)
+            return f"the simpler {simpler} predicts better"
+        return "within the noise" if c.within_noise else ""
 
     def to_json(self) -> dict[str, Any]:
         return {"chosen": self.chosen, "summary": self.summary, "rule": self.rule, "how": self.how,

@@ -255,7 +255,7 @@ def print_choice(choice: ChoiceReport) -> None:
     print(f"rule: {choice.rule}; {choice.how}")
     table(["candidate", "validation rmse per axis [px]", "± one standard error of its excess", "parameters", "chosen"],
           [(c.label, _or_dash(c.validation_rmse), _or_dash(c.standard_error_rmse), c.n_params or "—",
-            "*" if c.chosen else c.error or ("within the noise" if c.within_noise else ""))
+            "*" if c.chosen else choice.status(c))
            for c in choice.candidates])
 
 

@@ -263,8 +263,8 @@ def _quality(fn: Callable[..., dict[str, Any]], *args) -> dict[str, Any]:
 def _verdict(ok: dict[str, MethodScores], cv_residuals: dict) -> tuple[str | None, dict[str, Any]]:
     """The method to trust. With cross-validation, ``method="auto"``'s rule
     (``choice.choose``): the simplest method (``SIMPLEST_FIRST``) within the
-    noise of the lowest validation error; otherwise the lowest hold-out or
-    training error."""
+    noise of the lowest validation error that no simpler method predicts
+    better; otherwise the lowest hold-out or training error."""
     if not ok:
         return None, {"reason": "every method failed on these corners"}
     order = sorted(ok, key=lambda n: SIMPLEST_FIRST.index(n) if n in SIMPLEST_FIRST else len(SIMPLEST_FIRST))

@@ -9,7 +9,11 @@ first) within the noise of it: its excess over the lowest, view by view, no
 more than one standard error of that excess (the one-standard-error rule of
 Hastie, Tibshirani & Friedman, §7.10, on paired differences, as every
 candidate is scored on the same views and so shares their noise). A small or
-uneven set has a large standard error and so gets the simpler model.
+uneven set has a large standard error and so gets the simpler model. A
+candidate that a simpler one predicts better is never chosen: each band is the
+candidate's own, and on a few views an erratic candidate's is wide enough to
+hold the lowest error while a simpler, steadier and better one's is not
+(docs/model-choice.md, "A candidate a simpler one beats").
 
 A candidate whose distortion turns back inside the image (a polynomial or
 rational model past the reach of its corners: it maps no ray to part of the
@@ -26,8 +30,8 @@ import numpy as np
 
 RULE = ("the simplest candidate whose excess over the lowest validation error, view by view, is within one "
         "standard error of that excess (the one-standard-error rule on paired differences; candidates are listed "
-        "simplest first); a candidate that maps no ray to part of the image's edge is left out while another maps "
-        "all of it")
+        "simplest first) and that no simpler candidate predicts better; a candidate that maps no ray to part of the "
+        "image's edge is left out while another maps all of it")
 
 
 @dataclass
@@ -69,11 +73,20 @@ class ModelChoice:
     def within_noise(self, k: int) -> bool:
         return bool(self.mse(k) - self.mse(self.best) <= self.excess_se[k])
 
+    def beaten_by(self, k: int) -> int | None:
+        """The simpler candidate with the lowest validation error, if it is lower than ``k``'s."""
+        simpler = min(range(k), key=self.mse, default=None)
+        return simpler if simpler is not None and self.mse(simpler) < self.mse(k) else None
+
     def _as_rmse(self, excess: float) -> float | None:
         """An excess in mean squared error, as the rmse per axis it adds to the
         lowest's; None (JSON null) when the excess is not finite."""
         best = self.mse(self.best)
         return float(np.sqrt((best + excess) / 2) - np.sqrt(best / 2)) if np.isfinite(excess) else None
+
+    def _beaten_json(self, k: int) -> dict[str, str]:
+        simpler = None if self.candidates[k].view_sse is None else self.beaten_by(k)
+        return {} if simpler is None else {"beaten_by": self.candidates[simpler].name}
 
     def summary(self) -> str:
         c = self.candidates[self.chosen]
@@ -102,6 +115,7 @@ class ModelChoice:
                  # counts as equally good
                  "standard_error_rmse": None if c.view_sse is None else self._as_rmse(float(self.excess_se[k])),
                  "within_noise": None if c.view_sse is None else self.within_noise(k),
+                 **self._beaten_json(k),
                  "n_params": c.n_params, **({"error": c.error} if c.error else {}), **c.extra}
                 for k, c in enumerate(self.candidates)],
         }
@@ -124,7 +138,8 @@ def choose(candidates: list[Candidate], counts: np.ndarray, how: str = "") -> Mo
             excess_se[k] = np.std(excess, ddof=1) / np.sqrt(n) if n > 1 else np.inf
     excess_se[best] = 0.0
     choice = ModelChoice(candidates, counts, best, best, excess_se, how)
-    choice.chosen = next(k for k in range(len(candidates)) if choice.mse(k) < np.inf and choice.within_noise(k))
+    choice.chosen = next(k for k in range(len(candidates))
+                         if choice.mse(k) < np.inf and choice.within_noise(k) and choice.beaten_by(k) is None)
     return choice
 
 

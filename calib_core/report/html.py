@@ -10,6 +10,8 @@ import html
 from collections.abc import Iterable, Sequence
 from typing import Any
 
+from ..fit_report import ChoiceReport
+
 # figure file → (id, title, caption), in the order the page shows them
 FIGURES = {
     "residual_vectors.png": ("fig-vectors", "Corner residuals",
@@ -131,11 +133,11 @@ def _model_choice(cal: dict[str, Any]) -> str:
     choice = cal.get("diagnostics", {}).get("model_choice")
     if not choice:
         return ""
+    report = ChoiceReport.from_json(choice)
     cands = choice["candidates"]
-    rows = [(c["label"], _num(c["validation_rmse"]),
-             "—" if c.get("standard_error_rmse") is None else f"± {_num(c['standard_error_rmse'])}",
-             _num(c.get("n_params")), "chosen" if c["chosen"] else _e(c.get("error") or (
-                 "within the noise" if c.get("within_noise") else ""))) for c in cands]
+    rows = [(c.label, _num(c.validation_rmse),
+             "—" if c.standard_error_rmse is None else f"± {_num(c.standard_error_rmse)}",
+             _num(c.n_params), _e(report.status(c))) for c in report.candidates]
     return ("<section id='model-choice'><h2>Model choice</h2>"
             + _table("model-choice-table", f"Model chosen: {choice['summary']}",
                      ["candidate", "validation rmse per axis [px]", "± one standard error of its excess",

@@ -45,9 +45,20 @@ export function modelChoiceTable(calibration) {
       el("td", {}, c.validation_rmse == null ? "—" : num(c.validation_rmse, 4)),
       el("td", {}, c.standard_error_rmse == null ? "—" : `± ${num(c.standard_error_rmse, 4)}`),
       el("td", {}, c.n_params == null ? "—" : num(c.n_params)),
-      el("td", {}, c.chosen ? "chosen" : c.error || (c.within_noise ? "within the noise" : ""))))));
+      el("td", {}, choiceStatus(c, choice.candidates))))));
   const note = el("p", { class: "muted" }, `How: ${choice.how}. Rule: ${choice.rule}.`);
   return el("div", { class: "table-wrap" }, table, note);
+}
+
+/** A candidate's standing in the model choice, in page words (as ``ChoiceReport.status`` words it). */
+function choiceStatus(c, candidates) {
+  if (c.chosen) return "chosen";
+  if (c.error) return c.error;
+  if (c.beaten_by) {
+    const simpler = candidates.find((o) => o.name === c.beaten_by);
+    return `the simpler ${simpler ? simpler.label : c.beaten_by} predicts better`;
+  }
+  return c.within_noise ? "within the noise" : "";
 }
 
 /** A field fit that walked to a wrong camera: why it was restarted, which fit was kept, and what to do. */

@@ -10,7 +10,7 @@ import pytest
 
 from calib_core import synth
 from calib_core.evaluation.evaluate import evaluate, validation_residuals
-from calib_core.fit_report import CandidateScore
+from calib_core.fit_report import CandidateScore, ChoiceReport
 from calib_core.fitting.choice import Candidate, choose
 from calib_core.fitting.metrics import rmse
 from calib_core.models.unproject import edge_pixels, lit_edge, unmapped_share
@@ -126,6 +126,41 @@ def test_the_simplest_candidate_within_the_noise_of_the_best_is_chosen(errors, c
     choice = choose([Candidate(str(k), f"model {k}", e) for k, e in enumerate(errors)], np.full(n, 50))
     assert choice.chosen == chosen
     assert sum(c["chosen"] for c in choice.to_json()["candidates"]) == 1
+
+
+def test_a_candidate_that_a_simpler_one_predicts_better_is_never_chosen():
+    """Three views: an erratic candidate's standard error is wide enough to hold the lowest
+    error while a steadier, simpler candidate that predicts better is outside its own band.
+    The rule does not reward the erratic one for its noise: the next candidate that no
+    simpler one beats is taken, and the table says why the erratic one was passed over."""
+    steady = np.array([2.9, 2.7, 2.6]) ** 2 * 100        # per-view squared errors of 50 corners, both axes
+    erratic = np.array([1.2, 1.5, 5.5]) ** 2 * 100
+    good = np.array([2.4, 1.7, 1.8]) ** 2 * 100
+    best = np.array([1.8, 1.75, 1.8]) ** 2 * 100
+    choice = choose([Candidate("steady", "steady", steady), Candidate("erratic", "erratic", erratic),
+                     Candidate("good", "good", good), Candidate("best", "best", best)], np.full(3, 50))
+    assert choice.within_noise(1) and not choice.within_noise(0)   # the erratic one is "within the noise"
+    assert choice.name == "good"
+    rows = choice.to_json()["candidates"]
+    assert rows[1]["beaten_by"] == "steady" and "beaten_by" not in rows[2] and "beaten_by" not in rows[3]
+    report = ChoiceReport.from_json(choice.to_json())
+    assert report.status(report.candidates[1]) == "the simpler steady predicts better"
+    assert ChoiceReport.from_json(report.to_json()) == report
+
+
+@pytest.mark.slow
+def test_three_noisy_views_of_a_decentred_lens_do_not_get_a_model_worse_than_a_simpler_one():
+    """The case that made the rule (σ = 1 px, seed 22): Kannala–Brandt's left-out error was the
+    worst of all and its band the widest; it was chosen and predicted the whole image at
+    2.2 px, twice OpenCV's models and five times the paper's field."""
+    s = synth.generate("decentred", sigma=1.0, seed=22, n_views=3)
+    cal = calibrate(s.train, "auto")
+    choice = cal.diagnostics.model_choice
+    chosen = choice.chosen_candidate
+    assert all(c.validation_rmse is None or c.validation_rmse >= chosen.validation_rmse
+               for c in choice.candidates[:[c.chosen for c in choice.candidates].index(True)])
+    assert chosen.name != "fisheye"
+    assert evaluate(cal, s.holdout)["rmse"] < 0.5 * evaluate(calibrate(s.train, "fisheye"), s.holdout)["rmse"]
 
 
 def test_a_model_that_maps_no_ray_to_part_of_the_image_is_left_out_while_another_maps_it_all():

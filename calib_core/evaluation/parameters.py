@@ -23,7 +23,7 @@ import numpy as np
 from ..models import BSplineModel, FisheyeModel, HybridModel, OpenCVModel, camera
 from ..models.base import CameraModel, fitted_parameter_count
 from ..models.residual_field import ResidualFieldModel
-from .verdict import uncovered_regions, verdict
+from .verdict import FIELD_ADVICE, uncovered_regions, verdict
 
 if TYPE_CHECKING:
     from ..calibration import Calibration
@@ -70,6 +70,32 @@ def how_chosen(cal: Calibration) -> str:
         reason = choice.summary.split(": ", 1)[1] if ": " in choice.summary else choice.summary
         return f"chosen by method auto among {len(choice.candidates)} candidates: {reason}"
     return f"as asked (method {cal.method})"
+
+
+def other_model(cal: Calibration) -> str | None:
+    """The advice on another model for corners far from this one, agreeing with method
+    auto's choice: None for a model with a field; where auto kept a model without one
+    over a field that predicted the views left out better, that field and why it was
+    not taken (on a few views the difference lies within their noise)."""
+    if field_summary(cal) is not None:
+        return None
+    choice = cal.diagnostics.model_choice
+    if cal.method != "auto" or choice is None:
+        return FIELD_ADVICE
+    chosen = choice.chosen_candidate
+    better = [c for c in choice.candidates if _has_field(c.name) and c.validation_rmse is not None
+              and chosen.validation_rmse is not None and c.validation_rmse < chosen.validation_rmse]
+    if not better:
+        return None
+    best = min(better, key=lambda c: c.validation_rmse or 0.0)
+    return (f"calibrate with the {best.label}: it predicted the views left out better ({best.validation_rmse:.2f} "
+            f"against {chosen.validation_rmse:.2f} px per axis), by less than the noise of {choice.n_views} views, "
+            "so the default kept the simpler model; more views let it tell")
+
+
+def _has_field(candidate: str) -> bool:
+    """Is method auto's candidate of this name a field (``bspline``, ``hybrid-<core>``)?"""
+    return candidate == "bspline" or candidate.startswith("hybrid-")
 
 
 def parameter_table(model: CameraModel, cov: np.ndarray | None) -> list[dict[str, Any]]:
@@ -248,7 +274,7 @@ def describe_camera(cal: Calibration, data: Data, poses: np.ndarray) -> dict[str
                    "measure": "worst-direction standard deviation of a projected direction (boards frame), "
                               "over the image cells with an observed corner nearby"}
     out["projection_uncertainty"] = unc
-    out["verdict"] = verdict(_fit_rmse(cal), unc, out["no_ray_beyond_px"], lit_radius(cal))
+    out["verdict"] = verdict(_fit_rmse(cal), unc, out["no_ray_beyond_px"], lit_radius(cal), other_model(cal))
     return out
 
 
@@ -262,7 +288,7 @@ def describe_without_corners(cal: Calibration) -> dict[str, Any]:
             "parameters": parameter_table(cal.model, None), "field": field_summary(cal),
             "field_of_view_deg": field_of_view(cal), "no_ray_beyond_px": no_ray, "projection_uncertainty": None,
             "uncertainty_error": "no standard deviations: they need the corners the calibration was fitted to",
-            "verdict": verdict(_fit_rmse(cal), None, no_ray, lit_radius(cal))}
+            "verdict": verdict(_fit_rmse(cal), None, no_ray, lit_radius(cal), other_model(cal))}
 
 
 def _fit_rmse(cal: Calibration) -> float:

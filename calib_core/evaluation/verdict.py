@@ -51,19 +51,25 @@ def _grade(value: float, limits: tuple[float, float], higher_is_better: bool = F
     return GRADES[0] if value <= good else GRADES[1] if value <= fair else GRADES[2]
 
 
+FIELD_ADVICE = "try a model with a field"  # where no choice among models was made
+
+
 def verdict(rmse: float, uncertainty: dict[str, Any] | None, no_ray: dict[str, float] | None = None,
-            lit: float | None = None) -> dict[str, Any]:
+            lit: float | None = None, other_model: str | None = FIELD_ADVICE) -> dict[str, Any]:
     """``{"grade", "text", "advice"}`` from the rms (px per point), the
     projection-uncertainty summary (``parameters.describe_camera``'s) and
     where the model has no ray (``no_ray``: line → px from the principal
     point, ``parameters.no_ray_beyond``) against how far out the lens is
-    known to light the image (``lit``, px: the farthest corner used)."""
+    known to light the image (``lit``, px: the farthest corner used).
+    ``other_model``: what to say of another model when the corners are far
+    from this one (``parameters.other_model``; None: nothing, e.g. the model
+    already has a field)."""
     fit = _grade(rmse, RMSE_LIMITS)
     no_ray = no_ray or {}
     advice: list[str] = []
     if fit == "poor":
-        advice.append("the corners are far from the model: check the board size and the photos' corners, "
-                      "or try a model with a field")
+        advice.append("the corners are far from the model: check the board size and the photos' corners"
+                      + (f", or {other_model}" if other_model else ""))
     elif fit == "fair":
         advice.append("the rms is above what a sharp board gives: look for views with large errors")
     reach = _reach(no_ray, lit)

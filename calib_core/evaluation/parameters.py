@@ -82,15 +82,14 @@ def other_model(cal: Calibration) -> str | None:
     choice = cal.diagnostics.model_choice
     if cal.method != "auto" or choice is None:
         return FIELD_ADVICE
-    chosen = choice.chosen_candidate
-    better = [c for c in choice.candidates if _has_field(c.name) and c.validation_rmse is not None
-              and chosen.validation_rmse is not None and c.validation_rmse < chosen.validation_rmse]
-    if not better:
+    kept = choice.chosen_candidate.validation_rmse
+    scored = [(c.validation_rmse, c.label) for c in choice.candidates if _has_field(c.name) and c.validation_rmse]
+    if kept is None or not scored or min(scored)[0] >= kept:
         return None
-    best = min(better, key=lambda c: c.validation_rmse or 0.0)
-    return (f"calibrate with the {best.label}: it predicted the views left out better ({best.validation_rmse:.2f} "
-            f"against {chosen.validation_rmse:.2f} px per axis), by less than the noise of {choice.n_views} views, "
-            "so the default kept the simpler model; more views let it tell")
+    score, label = min(scored)
+    return (f"calibrate with the {label}: it predicted the views left out better ({score:.2f} against {kept:.2f} px "
+            f"per axis), by less than the noise of {choice.n_views} views, so the default kept the simpler model; "
+            "more views let it tell")
 
 
 def _has_field(candidate: str) -> bool:

@@ -134,15 +134,14 @@ def _model_choice(cal: dict[str, Any]) -> str:
     if not choice:
         return ""
     report = ChoiceReport.from_json(choice)
-    cands = choice["candidates"]
     rows = [(c.label, _num(c.validation_rmse),
              "—" if c.standard_error_rmse is None else f"± {_num(c.standard_error_rmse)}",
              _num(c.n_params), _e(report.status(c))) for c in report.candidates]
     return ("<section id='model-choice'><h2>Model choice</h2>"
-            + _table("model-choice-table", f"Model chosen: {choice['summary']}",
+            + _table("model-choice-table", f"Model chosen: {report.summary}",
                      ["candidate", "validation rmse per axis [px]", "± one standard error of its excess",
-                      "parameters", ""], rows, [c["chosen"] for c in cands])
-            + f"<p class='muted'>How: {_e(choice['how'])}. Rule: {_e(choice['rule'])}.</p></section>")
+                      "parameters", ""], rows, [c.chosen for c in report.candidates])
+            + f"<p class='muted'>How: {_e(report.how)}. Rule: {_e(report.rule)}.</p></section>")
 
 
 def _restart(cal: dict[str, Any]) -> str:

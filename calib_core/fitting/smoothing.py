@@ -98,7 +98,7 @@ def cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge: 
     for c in range(2):
         g = gauge[c::2, c * n : (c + 1) * n].toarray()
         if basis is None or not np.array_equal(g, basis[0]):  # both components' gauge rows are usually the same
-            basis = (g, *_null_space(g, r))
+            basis = (g, *gauge_null_space(g, r))
         parts.append(_Component(b, weights[:, c], basis[1], basis[2], response[:, c], ridge, order, counts))
 
     # The two components are independent problems: one per core.
@@ -107,6 +107,14 @@ def cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge: 
             (sx, dx), (sy, dy) = pool.map(lambda part: part.scores(lams), parts)
         return sx + sy, dx + dy
 
+    return walk_lambdas(evaluate, lambdas, counts, refine, start)
+
+
+def walk_lambdas(evaluate, lambdas: np.ndarray, counts: np.ndarray, refine: bool = False,
+                 start: float | None = None) -> CVCurve:
+    """The curve of ``evaluate(λs) -> ((G, L) left-out SSE, (L,) dof)`` over
+    ``lambdas``: all of them, or with ``refine`` walked downhill (``cv_curve``)."""
+    lambdas = np.asarray(lambdas, dtype=float)
     if not refine or len(lambdas) < 5:
         sse, dof = evaluate(lambdas)
         return CVCurve(lambdas, sse, counts.astype(float), dof)
@@ -134,7 +142,7 @@ def cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge: 
                    np.array([scored[k][1] for k in idx]))
 
 
-def _null_space(g: np.ndarray, r: np.ndarray):
+def gauge_null_space(g: np.ndarray, r: np.ndarray):
     """(Z, ZᵀRZ): an orthonormal basis of the gauge rows' null space and the
     smoothness operator R there. The gauge rows hold exactly: the controls
     live in that null space. As heavily weighted rows instead they made S so
@@ -147,7 +155,7 @@ class _Component:
     """One field component's control-point problem, prepared for scoring any λ."""
 
     def __init__(self, b, w, z, rz, d, ridge, order, counts):
-        """z: the gauge's null space (``_null_space``), rz: the smoothness operator in it."""
+        """z: the gauge's null space (``gauge_null_space``), rz: the smoothness operator in it."""
         # BᵀWB from B's sparse rows, then into the null space: Zᵀ(BᵀWB)Z costs
         # two n³ products where (BZ)ᵀW(BZ) cost N·n².
         btwb = z.T @ gram(b, w) @ z

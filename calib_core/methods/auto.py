@@ -7,7 +7,7 @@ rational core. A lens past the pinhole's reach (corners beyond ~89° off
 axis) gets Kannala–Brandt and a field over it instead, the only models that
 represent every corner. From SCREEN_MIN_VIEWS views on, the fields are fitted
 only where a field over the most flexible core predicts views left out of it
-better than no field (``bspline.field_screen``); on fewer views every field is
+better than no field (``field_screen.py``); on fewer views every field is
 fitted. Every candidate fitted is scored on each view
 left out of its fit (``crossval.linearised_view_errors``; for a field over
 a core, the view leaves the core's own fit too) and the simplest within the
@@ -39,8 +39,9 @@ from ..models.base import CameraModel, fitted_parameter_count
 from ..models.camera import PINHOLE_MAX_ANGLE_DEG
 from ..models.unproject import lit_edge, unmapped_share
 from ..observations import Circle
-from .bspline import BSplineSettings, FieldScreen, field_design, field_screen, fit_core, fit_field
+from .bspline import BSplineSettings, field_design, fit_core, fit_field
 from .common import Fit, Progress, named, no_progress, scaled
+from .field_screen import FieldScreen, field_screen
 from .opencv import pinhole_visible
 
 
@@ -104,8 +105,7 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
     choice = _validate(specs, fits, why_not, sample, lit_edge(image_size, s.image_circle, wide))
     if screen is not None:
         choice.how += (f"; fields were fitted only if one over the {screen.core} model predicted the views left out "
-                       f"of it better than no field (it did{'' if screen.pays else ' not'}: "
-                       f"{screen.gain:.2g} ± {screen.standard_error:.2g} px² per corner)")
+                       f"of it better than no field (it did{'' if screen.pays else ' not'}: {screen.words()})")
     elif sample.n_views < SCREEN_MIN_VIEWS and any(sp.field is not None for sp in specs):
         choice.how += (f"; with {sample.n_views} views (fewer than {SCREEN_MIN_VIEWS}) every field was fitted, "
                        "as too few views are left out to tell beforehand whether one pays")
@@ -209,7 +209,7 @@ def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
     if screen is not None and not screen.pays:
         for i in fields:
             why_not[i] = (f"not fitted: a field over the {screen.core} model predicts the views left out of it no "
-                          f"better than no field ({screen.gain:.2g} ± {screen.standard_error:.2g} px² per corner)")
+                          f"better than no field ({screen.words()})")
         return fits, why_not, screen
     alone = [i for i in fields if specs[i].core is None]
     with ThreadPoolExecutor(max_workers=1) as pool:

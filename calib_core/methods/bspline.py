@@ -49,7 +49,7 @@ from ..models.bspline import GAUGE_WEIGHT, BSplineModel, gauge_rows
 from ..models.bspline_basis import BSplineField, clamped_knots
 from ..models.hybrid import HybridModel
 from ..models.unproject import frame_border
-from .common import Fit, Progress, no_progress
+from .common import Fit, Progress
 from .fisheye import FisheyeSettings, fit_fisheye
 from .opencv import OpenCVSettings, RationalSettings, fit_opencv
 
@@ -290,49 +290,6 @@ def core_field_problem(data: Data, image_size, s: BSplineSettings, core: str, pr
     return problem, fitted, fit.result.poses, ok, fit.excluded_reason
 
 
-SCREEN_INTERVALS = (10, 10)
-
-
-@dataclass
-class FieldScreen:
-    """Whether a field predicts what a parametric core leaves: the field over
-    the core's fitted camera and poses, its λ chosen by the views left out
-    (``_field_cv``), against no field on the same left-out views. ``gain``:
-    the mean squared left-out residual per corner (px², both axes) the field
-    takes away, and one standard error of it over the views (paired, as
-    ``choice.choose`` pairs candidates)."""
-
-    core: str
-    gain: float
-    standard_error: float
-
-    @property
-    def pays(self) -> bool:
-        # Any gain, not one beyond the noise: held at the core's camera, which
-        # the joint fit frees, the field shows only part of what it wins
-        # (docs/model-choice.md). On residuals that are noise alone the
-        # smoothing's own cost keeps the gain below zero.
-        return self.gain > 0
-
-
-def field_screen(data: Data, image_size, core: str, core_fit: Fit) -> FieldScreen:
-    """A field over ``core_fit`` on a 10 × 10 grid, scored on the views left
-    out of its control points' fit at the core's camera: the first stage of
-    the field-over-core candidate, at the cost of one λ curve."""
-    s = BSplineSettings(core=core)
-    problem, start, poses, ok, _ = core_field_problem(data, image_size, s, core, no_progress, core_fit)
-    samples, response, views = problem.samples(start, poses, data.points(ok))
-    weights = sample_weights(samples, response, s)
-    breaks = knots.breaks_for(samples, weights, problem.domain, s.knot_settings(SCREEN_INTERVALS), problem.footprint)
-    field = BSplineField.zeros(clamped_knots(breaks[0]), clamped_knots(breaks[1]))
-    cv = _field_cv(problem, field, samples, response, weights, views, s.lambda_reg, LAMBDA_GRID, refine=True)
-    none = np.bincount(groups_of(views), weights=np.sum(response**2, axis=1))  # a core's field's prior is zero
-    n = len(none)
-    gain = (none - cv.group_sse[:, cv.best]) * n / cv.counts.sum()  # its mean is the gain per corner
-    se = float(np.std(gain, ddof=1) / np.sqrt(n)) if n > 1 else np.inf
-    return FieldScreen(core, float(gain.mean()), se)
-
-
 # ---- shared steps ---------------------------------------------------------------------
 def solve_control_points(field: BSplineField, problem: FieldProblem, lambda_reg: float, lambda_smooth: float,
                          samples: np.ndarray, response: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -361,7 +318,7 @@ def _fitted(problem: FieldProblem, breaks, lambda_reg, lambda_smooth, start, sam
     return problem.make(field.with_control(control), lambda_smooth, start)
 
 
-def _field_cv(problem: FieldProblem, field: BSplineField, samples, response, weights, views, lambda_reg: float,
+def field_cv(problem: FieldProblem, field: BSplineField, samples, response, weights, views, lambda_reg: float,
               lambdas: np.ndarray, refine: bool = False, start: float | None = None) -> CVCurve:
     """Grouped (by view) cross-validation of the control points on this
     field's knots (``smoothing.cv_curve``). What is smoothed is the departure
@@ -379,7 +336,7 @@ def _choose_smoothing(problem: FieldProblem, samples, response, weights, views, 
     "auto", chosen by how well the field predicts views left out of its fit,
     within ``s.time_budget`` seconds. Each grid takes the λ whose control
     points predict left-out views best at the current camera and poses
-    (``_field_cv``, closed form). Grids are compared by ``joint(breaks, λ)``
+    (``field_cv``, closed form). Grids are compared by ``joint(breaks, λ)``
     when given: the views' errors left out of the joint fit of camera, poses
     and field (``crossval.linearised_view_errors``), where the camera and
     the other views take up what a coarse field leaves (at a held camera a
@@ -415,7 +372,7 @@ def _choose_smoothing(problem: FieldProblem, samples, response, weights, views, 
             key = (breaks[0].tobytes(), breaks[1].tobytes())
             if key not in scored:  # factors that move no knot (e.g. uniform knots) cost nothing more
                 field = BSplineField.zeros(clamped_knots(breaks[0]), clamped_knots(breaks[1]))
-                cv = _field_cv(problem, field, samples, response, weights, views, s.lambda_reg, lambdas, refine=True,
+                cv = field_cv(problem, field, samples, response, weights, views, s.lambda_reg, lambdas, refine=True,
                                start=previous)
                 lam = previous = float(cv.lambdas[cv.best])
                 if jointly:  # per view

@@ -45,6 +45,7 @@ def fisheye_lens(pc):
 
 
 WEBCAM = np.array([[600.0, 0, 327], [0, 600, 235], [0, 0, 1]])  # 640 x 480
+HD = np.array([[700.0, 0, 641], [0, 700, 357], [0, 0, 1]])  # 1280 x 720
 
 
 def opencv_lens(coefficients):
@@ -57,6 +58,16 @@ webcam_lens = opencv_lens([-0.3, 0.12, 0.001, -0.002, -0.02])
 mustache_lens = opencv_lens([0.2, -0.4, 0, 0, 0.25])  # barrel in the middle, pincushion at the edge
 prism_lens = opencv_lens([-0.3, 0.12, 0.001, -0.002, -0.02, 0, 0, 0, 0.004, -0.002, 0.003, 0.001])  # thin prism
 tilted_lens = opencv_lens([-0.3, 0.12, 0.001, -0.002, -0.02, 0, 0, 0, 0, 0, 0, 0, 0.02, -0.015])  # tilted sensor
+
+
+def elliptic_lens(pc, stretch=1.3, camera=WEBCAM):
+    """Barrel distortion radial in a frame stretched ``stretch`` times along x (an
+    anamorphic element's), through ``camera`` (3 x 3): no parametric model's, and
+    smooth enough that each view's pose absorbs part of its error."""
+    x, y = pc[:, 0] / pc[:, 2], pc[:, 1] / pc[:, 2]
+    r2 = (x / stretch) ** 2 + y**2
+    f = 1 - 0.3 * r2 + 0.08 * r2 * r2
+    return np.column_stack([camera[0, 0] * x * f + camera[0, 2], camera[1, 1] * y * f + camera[1, 2]])
 
 
 def rippled_lens(pc, amplitude=1.2):

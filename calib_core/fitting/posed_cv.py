@@ -1,0 +1,105 @@
+"""Grouped cross-validation of a field over a fitted core, each view's pose refit.
+
+``smoothing.cv_curve`` scores a field at the core's camera and poses, each view's
+pose held. Where the core's error is not a function of the pixel alone, that
+misjudges it: a lens whose distortion no parametric model represents (an
+elliptic one, say) makes the core's fit tilt each view's pose to absorb part of
+the error, a different part in each view, and what is left, view by view, is not
+one field. Held there, no field predicts the views left out better; fitted with
+the poses, the paper's field predicted them 4x better (docs/model-choice.md,
+"Poses that hide a field").
+
+Here each view's six pose parameters are eliminated from its rows, linearised at
+the core's fit: the field is fitted with the other views' poses free, and the
+view left out is predicted with its own pose refit, as the joint fit and
+``freecal evaluate`` treat them. A pose moves a corner's x and y together, so the
+two components are one problem (where ``cv_curve`` solves them apart).
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+import scipy.sparse as sp
+
+from .gram import gram
+from .smoothing import CVCurve, gauge_null_space, walk_lambdas
+
+
+def posed_cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, gauge: sp.csr_matrix,
+                   response: np.ndarray, pose_jacobian: sp.csr_matrix, view_index: np.ndarray, ridge: float,
+                   groups: np.ndarray, lambdas: np.ndarray) -> tuple[CVCurve, np.ndarray]:
+    """(curve, (G,) no field's left-out SSE per group): ``cv_curve``'s question
+    (same arguments, walked downhill from ``start``) with each view's pose refit.
+
+    pose_jacobian: (2N, 6V) the corners' pixels' derivatives along each view's
+    pose, rows interleaved x, y as in the solver's Jacobian. Each view's rows are
+    projected off its pose's columns (W-orthogonally), which turns the joint
+    problem into a field-only one; leaving a group out removes its projected
+    rows (one Cholesky solve a group and λ). No field's error is the response
+    projected the same way: each view's pose refit to the core's corners."""
+    b = sp.csr_matrix(b)
+    n = b.shape[1]
+    r = (bend.T @ bend).toarray()
+    z = [gauge_null_space(gauge[c::2, c * n : (c + 1) * n].toarray(), r)[0] for c in range(2)]
+    split = z[0].shape[1]
+    smooth = scipy.linalg.block_diag(z[0].T @ r @ z[0], z[1].T @ r @ z[1])
+    counts = np.bincount(groups)
+    # Each row's six pose derivatives (its view's columns), rows interleaved x, y.
+    coo = sp.coo_matrix(pose_jacobian)
+    pose = np.zeros((coo.shape[0], 6))
+    pose[coo.row, coo.col - 6 * np.repeat(view_index, 2)[coo.row]] = coo.data
+    # Per group: the normal equations' share and rhs, and its rows' design and
+    # response projected off their views' poses (the left-out prediction's).
+    normal = np.zeros((len(counts), len(smooth), len(smooth)))
+    rhs = np.zeros((len(counts), len(smooth)))
+    designs, responses = [], []
+    for g in range(len(counts)):
+        points = np.flatnonzero(groups == g)
+        normal[g] = scipy.linalg.block_diag(*(z[c].T @ gram(b[points], weights[points, c]) @ z[c] for c in range(2)))
+        x = np.zeros((2 * len(points), len(smooth)))  # the rows in the gauge's null space, interleaved
+        x[0::2, :split], x[1::2, split:] = b[points] @ z[0], b[points] @ z[1]
+        d, w = response[points].ravel(), weights[points].ravel()
+        rhs[g] = x.T @ (w * d)
+        local = np.repeat(view_index[points], 2)
+        interleaved = (2 * points[:, None] + [0, 1]).ravel()  # the group's rows of the Jacobian
+        for v in np.unique(local):
+            rows = np.flatnonzero(local == v)
+            m = _whitened(pose[interleaved[rows]], w[rows])
+            xt_w_m = x[rows].T @ (w[rows, None] * m)
+            normal[g] -= xt_w_m @ xt_w_m.T
+            rhs[g] -= xt_w_m @ (m.T @ (w[rows] * d[rows]))
+            x[rows] -= m @ xt_w_m.T
+            d[rows] -= m @ (m.T @ (w[rows] * d[rows]))
+        designs.append(x)
+        responses.append(d)
+    total, total_rhs = normal.sum(axis=0), rhs.sum(axis=0)
+    total[np.diag_indices(len(total))] += max(ridge, 1e-9)
+    no_field = np.array([float(d @ d) for d in responses])
+
+    def evaluate(lams: np.ndarray):
+        sse = np.zeros((len(counts), len(lams)))
+        for g in range(len(counts)):
+            controls = np.column_stack([_spd_solve(total + lam * smooth - normal[g], total_rhs - rhs[g]) for lam in lams])
+            sse[g] = np.sum((responses[g][:, None] - designs[g] @ controls) ** 2, axis=0)
+        return sse, np.full(len(lams), np.nan)
+
+    return walk_lambdas(evaluate, lambdas, counts, refine=True), no_field
+
+
+def _whitened(p: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """P (PᵀWP)^-½ (rows, 6), directions PᵀWP cannot tell apart (a view of too few
+    corners to pose) dropped: M Mᵀ W projects onto the pose's columns."""
+    s, u = np.linalg.eigh(p.T @ (w[:, None] * p))
+    keep = s > 1e-12 * max(float(s.max(initial=0.0)), 1e-300)
+    return p @ (u[:, keep] / np.sqrt(s[keep]))
+
+
+def _projected(e: np.ndarray, m: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """e less what the view's pose takes up (the W-weighted least-squares pose step)."""
+    return e - m @ (m.T @ (w * e))
+
+
+def _spd_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a⁻¹ b by Cholesky; by least squares where rounding leaves ``a`` indefinite."""
+    _, x, info = scipy.linalg.lapack.dposv(a, b, lower=0, overwrite_a=0)
+    return x if info == 0 else np.linalg.lstsq(a, b, rcond=None)[0]

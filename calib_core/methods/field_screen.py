@@ -31,10 +31,9 @@ from .common import Fit, no_progress
 
 SCREEN_INTERVALS = (10, 10)
 POSED_SCREEN_INTERVALS = (6, 6)
-# The share of no field's left-out error the posed field must take away. On the 24
-# parametric lens sets measured (radial, fisheye, four OpenCV lenses) the posed gain
-# was at most 0.3 % of it (mean below zero: a field fits noise), on elliptic lenses that
-# a field predicts 4x better 5-60 %: a gain under 1 % is not worth a field's search.
+# The share of no field's left-out error the posed field must take away: on lenses with
+# no field to find it stayed within -0.65 % to +0.18 % (60 sets), on elliptic lenses it
+# reached 6-61 % (11 of 13 sets; docs/model-choice.md, "Poses that hide a field").
 POSED_MIN_SHARE = 0.01
 
 

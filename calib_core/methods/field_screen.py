@@ -94,9 +94,9 @@ def field_screen(data: Data, image_size, core: str, core_fit: Fit) -> FieldScree
         field.design(samples).matrix(field.n_controls), weights / weights.mean(axis=0), field.bending(),
         gauge_rows(field, problem.gauge_point) * GAUGE_WEIGHT, response, jacobian[: 2 * sub.n_points],
         sub.view_index, s.lambda_reg, groups, LAMBDA_GRID)
-    gain, se = _gain(posed_none, posed.group_sse[:, posed.best], posed.counts)
-    screen.posed_gain, screen.posed_standard_error = gain, se
-    screen.posed_share = gain * posed.counts.sum() / len(posed_none) / max(float(posed_none.mean()), 1e-300)
+    field_sse = posed.group_sse[:, posed.best]
+    screen.posed_gain, screen.posed_standard_error = _gain(posed_none, field_sse, posed.counts)
+    screen.posed_share = 1.0 - float(field_sse.sum()) / max(float(posed_none.sum()), 1e-300)
     return screen
 
 

@@ -36,7 +36,7 @@ from ..methods import METHODS
 from ..methods.auto import past_pinhole
 from ..methods.common import Progress, named, no_progress, scaled
 from ..models.base import fitted_parameter_count
-from ..models.unproject import lit_edge, unmapped_share
+from ..models.unproject import LitEdge, lit_edge
 from ..observations import Observations
 from ..pipeline import MIN_VIEWS, calibrate, to_data, usable_views
 from . import quality
@@ -61,7 +61,7 @@ class MethodScores:
     quality: dict[str, Any]            # the paper's Table 7 (quality.py), or {"error": why}
     holdout: dict[str, float] | None = None   # holdout_rmse, _axis, _center, _edge, with a hold-out set
     cv: dict[str, Any] | None = None          # the folds over the views (None without cross-validation)
-    unmapped_edge: float = 0.0                # share of the image's edge its model maps no ray to
+    folds: tuple[float, float] = (0.0, 0.0)  # what its model maps no ray to (``unproject.LitEdge.folds``)
 
     @property
     def cv_validation_rmse(self) -> float | None:
@@ -214,7 +214,7 @@ def compare(observations: Observations, methods: list[str] | None = None, splits
 
 
 def _scores(observations: Observations, name: str, splits: int, holdout: Observations | None, part: Progress,
-            cv_residuals: dict, edge: np.ndarray | None) -> MethodScores:
+            cv_residuals: dict, edge: LitEdge | None) -> MethodScores:
     """``edge``: the pixels its model must map rays to (``unproject.lit_edge``; None: not known)."""
     cal = calibrate(observations, name, scaled(part, 0.0, 0.5 if splits else 0.9))
     scores = MethodScores(
@@ -222,7 +222,7 @@ def _scores(observations: Observations, name: str, splits: int, holdout: Observa
         views=[{"name": v.name, "rmse": v.rmse, "rmse_axis": v.rmse_axis, "n_points": v.n_points} for v in cal.views],
         n_params=fitted_parameter_count(cal.model),  # what the fit moved, not what the model could
         quality=_quality(quality.geometric_quality, cal, observations),  # paper Table 7
-        unmapped_edge=0.0 if edge is None else unmapped_share(cal.model, edge))
+        folds=(0.0, 0.0) if edge is None else edge.folds(cal.model))
     if holdout is not None:
         r, data, _ = validation_residuals(cal, holdout)
         s = metrics.summary(r, data.image_points, holdout.image_size)
@@ -234,7 +234,7 @@ def _scores(observations: Observations, name: str, splits: int, holdout: Observa
     return scores
 
 
-def _lit_edge(observations: Observations) -> np.ndarray | None:
+def _lit_edge(observations: Observations) -> LitEdge | None:
     """The pixels every method's model must map rays to, as ``method="auto"`` asks (``lit_edge``)."""
     obs, _ = usable_views(observations)
     data, _, _ = to_data(obs)
@@ -276,7 +276,7 @@ def _verdict(ok: dict[str, MethodScores], cv_residuals: dict) -> tuple[str | Non
             r, _, view = cv_residuals[n]
             ids, index = np.unique(view, return_inverse=True)
             candidates.append(Candidate(n, n, np.bincount(index, np.sum(r * r, axis=1), minlength=len(ids)),
-                                        unmapped=ok[n].unmapped_edge))
+                                        unmapped=ok[n].folds[0], unmapped_inside=ok[n].folds[1]))
             counts = np.bincount(index, minlength=len(ids))
         choice = choose(candidates, counts, how="validation error per axis over the folds of the views")
         best = choice.name

@@ -30,8 +30,9 @@ import numpy as np
 
 RULE = ("the simplest candidate whose excess over the lowest validation error, view by view, is within one "
         "standard error of that excess (the one-standard-error rule on paired differences; candidates are listed "
-        "simplest first) and that no simpler candidate predicts better; a candidate that maps no ray to part of the "
-        "image's edge is left out while another maps all of it")
+        "simplest first) and that no simpler candidate predicts better; a candidate whose distortion turns back "
+        "a tenth of the way in from the image's edge is left out while another maps that far, one that turns back "
+        "only in the outermost tenth while a simpler one maps all of the edge")
 
 
 @dataclass
@@ -46,7 +47,10 @@ class Candidate:
     error: str = ""
     n_params: int | None = None
     extra: dict[str, Any] = field(default_factory=dict)
-    unmapped: float = 0.0  # share of the image's edge its model maps no ray to (``unproject.unmapped_share``)
+    # shares of the lit image's edge, and of the same a tenth of the way in, its model maps no ray
+    # to (``unproject.LitEdge.folds``)
+    unmapped: float = 0.0
+    unmapped_inside: float = 0.0
 
 
 @dataclass
@@ -144,15 +148,30 @@ def choose(candidates: list[Candidate], counts: np.ndarray, how: str = "") -> Mo
 
 
 def _leave_out_folding(candidates: list[Candidate], counts: np.ndarray) -> None:
-    """Candidates whose model maps no ray to part of the image's edge lose their
-    validation (with the reason) while another validated one maps all of it."""
-    validated = [c for c in candidates if c.view_sse is not None]
-    if not any(c.unmapped == 0 for c in validated):
-        return
-    for c in validated:
-        if c.unmapped > 0 and c.view_sse is not None:
-            rmse = np.sqrt(c.view_sse.sum() / counts.sum() / 2)
-            c.error = (f"left out: it maps no ray to {100 * c.unmapped:.1f} % of the image's edge (its distortion "
-                       f"turns back inside the image), so it cannot serve the image's corners; its error on the "
-                       f"views left out was {rmse:.4f} px per axis")
-            c.view_sse = None
+    """Candidates whose model maps no ray to part of the lit image's edge lose their
+    validation, with the reason: one that folds a tenth of the way in, while another
+    maps that far; one that folds only in the outermost tenth, while a simpler one maps
+    all of the edge. A simple model turning back in the frame's corners, where few boards
+    reach, is no reason to take a more flexible one the views left out cannot tell from it
+    (docs/model-choice.md, step 3)."""
+    validated = [(k, c) for k, c in enumerate(candidates) if c.view_sse is not None]
+    inside_mapped = [c for _, c in validated if c.unmapped_inside == 0]
+    reasons = {}
+    for k, c in validated:
+        if c.unmapped == 0:
+            continue
+        if c.unmapped_inside > 0 and inside_mapped:
+            reasons[k] = (f"it maps no ray to {100 * c.unmapped_inside:.1f} % of the image's edge taken a tenth of "
+                          "the way in (its distortion turns back inside the image), so it cannot serve the image's "
+                          "corners")
+        elif c.unmapped_inside == 0:
+            simpler = next((d for j, d in validated if j < k and d.unmapped == 0), None)
+            if simpler is not None:
+                reasons[k] = (f"its distortion turns back in the image's outermost tenth ({100 * c.unmapped:.1f} % "
+                              f"of the image's edge maps no ray), where the simpler {simpler.label} maps all of it")
+    for k, why in reasons.items():
+        c = candidates[k]
+        assert c.view_sse is not None  # validated
+        rmse = np.sqrt(c.view_sse.sum() / counts.sum() / 2)
+        c.error = f"left out: {why}; its error on the views left out was {rmse:.4f} px per axis"
+        c.view_sse = None

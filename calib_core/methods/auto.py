@@ -37,7 +37,7 @@ from ..fitting.init import initialise, poses_from_rays
 from ..fitting.solve import Data, SolveSettings, levenberg_marquardt, spread_views
 from ..models.base import CameraModel, fitted_parameter_count
 from ..models.camera import PINHOLE_MAX_ANGLE_DEG
-from ..models.unproject import lit_edge, unmapped_share
+from ..models.unproject import LitEdge, lit_edge
 from ..observations import Circle
 from .bspline import BSplineSettings, field_design, fit_core, fit_field
 from .common import Fit, Progress, named, no_progress, scaled
@@ -244,7 +244,7 @@ def _screen(specs, cores: dict[str, Fit | None], sample: Data, image_size) -> Fi
 
 
 def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data,
-              edge: np.ndarray | None) -> ModelChoice:
+              edge: LitEdge | None) -> ModelChoice:
     """Each candidate's error on each view left out of its fit
     (``crossval.linearised_view_errors``), on the corners every candidate
     could use, and the one-standard-error choice among them; ``edge``: pixels
@@ -255,7 +255,7 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data,
     candidates = []
     core_steps: dict[str, tuple[CameraModel, np.ndarray]] = {}  # core → (its model, its moves per view)
     for spec, fit, reason in zip(specs, fits, why_not, strict=True):
-        errors, unmapped = None, 0.0
+        errors, folds = None, (0.0, 0.0)
         if fit is not None:
             used = ~fit.excluded
             model = fit.result.model
@@ -264,13 +264,14 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data,
                 held = None if core is None else held_steps(model, *core)
                 lovo = linearised_view_errors(model, fit.result.poses, sample.points(used), kept[used], held)
                 errors = lovo.errors
-                unmapped = 0.0 if edge is None else unmapped_share(model, edge)
+                folds = (0.0, 0.0) if edge is None else edge.folds(model)
                 if spec.field is None:
                     core_steps[spec.core] = (model, lovo.steps)
             except np.linalg.LinAlgError:
                 reason = "its fit without some view is undetermined"
         candidates.append(Candidate(spec.name, spec.label, errors, reason,
-                                    None if fit is None else fitted_parameter_count(fit.result.model), unmapped=unmapped))
+                                    None if fit is None else fitted_parameter_count(fit.result.model),
+                                    unmapped=folds[0], unmapped_inside=folds[1]))
     how = (f"error per axis on each of the {sample.n_views} views left out of the fit (one Gauss-Newton step "
            "from the full fit without the view, or a refit where that step leaves the linear regime; then only "
            "the view's pose refit)")

@@ -12,6 +12,8 @@ the nearest projected sample of that branch, then damped Newton
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -98,11 +100,37 @@ def edge_pixels(image_size: tuple[int, int], circle: Circle | None = None, per_s
     return np.concatenate([rim[in_frame], border[in_disc]])
 
 
-def lit_edge(image_size: tuple[int, int], circle: Circle | None, wide: bool) -> np.ndarray | None:
-    """The pixels a model must map rays to (``edge_pixels``), or None where that is not known:
+# The outermost tenth of the way from the lit image's centre to its edge: the frame's
+# corners, which few boards reach. A fold there can be the saturation of a model that
+# holds everywhere else; the folds that mislead reach further in (docs/model-choice.md,
+# step 3).
+FOLD_MARGIN = 0.1
+
+
+@dataclass(frozen=True)
+class LitEdge:
+    """Pixels along the edge of what the lens images (``edge_pixels``), and the same
+    FOLD_MARGIN of the way in towards its centre."""
+
+    rim: np.ndarray
+    inside: np.ndarray
+
+    def folds(self, model: CameraModel) -> tuple[float, float]:
+        """(share of ``rim``, share of ``inside``) the model maps no ray to."""
+        at_rim = unmapped_share(model, self.rim)
+        return at_rim, 0.0 if at_rim == 0 else unmapped_share(model, self.inside)
+
+
+def lit_edge(image_size: tuple[int, int], circle: Circle | None, wide: bool) -> LitEdge | None:
+    """The pixels a model must map rays to (``LitEdge``), or None where that is not known:
     past the pinhole's reach (``wide``) with no image circle recorded, a lens's image circle
     often ends inside the frame and leaves its corners unlit."""
-    return None if wide and circle is None else edge_pixels(image_size, circle)
+    if wide and circle is None:
+        return None
+    w, h = image_size
+    centre = np.array([(w - 1) / 2, (h - 1) / 2] if circle is None else circle[:2])
+    rim = edge_pixels(image_size, circle)
+    return LitEdge(rim, centre + (1.0 - FOLD_MARGIN) * (rim - centre))
 
 
 def unmapped_share(model: CameraModel, pixels: np.ndarray) -> float:

@@ -48,16 +48,29 @@ WEBCAM = np.array([[600.0, 0, 327], [0, 600, 235], [0, 0, 1]])  # 640 x 480
 HD = np.array([[700.0, 0, 641], [0, 700, 357], [0, 0, 1]])  # 1280 x 720
 
 
-def opencv_lens(coefficients):
-    """A 640 x 480 camera through OpenCV's model with these distortion coefficients (5, 8, 12 or 14)."""
+def opencv_lens(coefficients, camera=WEBCAM):
+    """``camera`` (3 x 3; default a 640 x 480 one) through OpenCV's model with these distortion
+    coefficients (5, 8, 12 or 14)."""
     d = np.asarray(coefficients, dtype=float)
-    return lambda pc: cv2.projectPoints(pc, np.zeros(3), np.zeros(3), WEBCAM, d)[0].reshape(-1, 2)
+    return lambda pc: cv2.projectPoints(pc, np.zeros(3), np.zeros(3), camera, d)[0].reshape(-1, 2)
 
 
-webcam_lens = opencv_lens([-0.3, 0.12, 0.001, -0.002, -0.02])
+WEBCAM_DISTORTION = [-0.3, 0.12, 0.001, -0.002, -0.02]
+webcam_lens = opencv_lens(WEBCAM_DISTORTION)
 mustache_lens = opencv_lens([0.2, -0.4, 0, 0, 0.25])  # barrel in the middle, pincushion at the edge
-prism_lens = opencv_lens([-0.3, 0.12, 0.001, -0.002, -0.02, 0, 0, 0, 0.004, -0.002, 0.003, 0.001])  # thin prism
-tilted_lens = opencv_lens([-0.3, 0.12, 0.001, -0.002, -0.02, 0, 0, 0, 0, 0, 0, 0, 0.02, -0.015])  # tilted sensor
+prism_lens = opencv_lens([*WEBCAM_DISTORTION, 0, 0, 0, 0.004, -0.002, 0.003, 0.001])  # thin prism
+tilted_lens = opencv_lens([*WEBCAM_DISTORTION, 0, 0, 0, 0, 0, 0, 0, 0.02, -0.015])  # tilted sensor
+
+
+def through(lens, camera=HD, own=WEBCAM):
+    """``lens`` (a 640 x 480 one, ``own`` its camera matrix) with its distortion seen through
+    another ``camera``: the same normalised mapping, other pixels (at HD, the webcam lens's
+    polynomial reaches 1.6 times further out)."""
+    def project(pc):
+        pixels = lens(pc)
+        normalised = (pixels - own[:2, 2]) / np.diag(own)[:2]
+        return normalised * np.diag(camera)[:2] + camera[:2, 2]
+    return project
 
 
 def elliptic_lens(pc, stretch=1.3, camera=WEBCAM):

@@ -53,14 +53,20 @@ def posed_cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, g
     pose[coo.row, coo.col - 6 * np.repeat(view_index, 2)[coo.row]] = coo.data
     # Per group: the normal equations' share and rhs, and its rows' design and
     # response projected off their views' poses (the left-out prediction's).
+    # The points sorted by group, so that each group's rows are one slice.
+    order = np.argsort(groups, kind="stable")
+    bounds = np.concatenate([[0], np.cumsum(counts)])
+    b = b[order]
+    design = [np.asarray(b @ z[c]) for c in range(2)]  # (N, k_c) each component's rows in the gauge's null space
     normal = np.zeros((len(counts), len(smooth), len(smooth)))
     rhs = np.zeros((len(counts), len(smooth)))
     designs, responses = [], []
     for g in range(len(counts)):
-        points = np.flatnonzero(groups == g)
-        normal[g] = scipy.linalg.block_diag(*(z[c].T @ gram(b[points], weights[points, c]) @ z[c] for c in range(2)))
-        x = np.zeros((2 * len(points), len(smooth)))  # the rows in the gauge's null space, interleaved
-        x[0::2, :split], x[1::2, split:] = b[points] @ z[0], b[points] @ z[1]
+        span = slice(bounds[g], bounds[g + 1])
+        points = order[span]
+        normal[g] = scipy.linalg.block_diag(*(z[c].T @ gram(b[span], weights[points, c]) @ z[c] for c in range(2)))
+        x = np.zeros((2 * len(points), len(smooth)))  # the group's rows, interleaved x, y
+        x[0::2, :split], x[1::2, split:] = design[0][span], design[1][span]
         d, w = response[points].ravel(), weights[points].ravel()
         rhs[g] = x.T @ (w * d)
         local = np.repeat(view_index[points], 2)

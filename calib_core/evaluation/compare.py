@@ -239,10 +239,10 @@ def _lit_edge(observations: Observations) -> LitEdge | None:
     obs, _ = usable_views(observations)
     data, _, _ = to_data(obs)
     try:
-        wide = bool(past_pinhole(initialise(data, obs.image_size).model, data).any())
+        first = initialise(data, obs.image_size).model
     except (CalibError, np.linalg.LinAlgError, FloatingPointError):  # no first camera: the methods will say why
         return None
-    return lit_edge(observations.image_size, observations.image_circle, wide)
+    return lit_edge(observations.image_size, observations.image_circle, bool(past_pinhole(first, data).any()), first)
 
 
 def _fit_metrics(cal: Calibration) -> FitMetrics:

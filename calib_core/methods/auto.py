@@ -102,7 +102,7 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
     if all(f is None for f in fits):
         raise DataError("no model fits these corners: " + "; ".join(dict.fromkeys(e for e in why_not if e)))
     progress("model choice", 0.8 * share)
-    choice = _validate(specs, fits, why_not, sample, lit_edge(image_size, s.image_circle, wide))
+    choice = _validate(specs, fits, why_not, sample, lit_edge(image_size, s.image_circle, wide, init.model))
     if screen is not None:
         choice.how += (f"; fields were fitted only if one over the {screen.core} model predicted the views left out "
                        f"of it better than no field (it did{'' if screen.pays else ' not'}: {screen.words()})")

@@ -121,16 +121,34 @@ class LitEdge:
         return at_rim, 0.0 if at_rim == 0 else unmapped_share(model, self.inside)
 
 
-def lit_edge(image_size: tuple[int, int], circle: Circle | None, wide: bool) -> LitEdge | None:
-    """The pixels a model must map rays to (``LitEdge``), or None where that is not known:
-    past the pinhole's reach (``wide``) with no image circle recorded, a lens's image circle
-    often ends inside the frame and leaves its corners unlit."""
-    if wide and circle is None:
+def lit_edge(image_size: tuple[int, int], circle: Circle | None, wide: bool,
+             first: CameraModel | None = None) -> LitEdge | None:
+    """The pixels a model must map rays to (``LitEdge``), or None where that is not known
+    (no image circle recorded): past the pinhole's reach (``wide``), a lens's image circle
+    often ends inside the frame and leaves its corners unlit. Where the ``first`` camera
+    (the initialisation's) maps no ray to part of the frame's border, the lens images a
+    disc short of the frame's corners (a fisheye whose image circle the frame cuts), which
+    no right model maps past: the edge is that disc's (``imaged_disc``)."""
+    rim = edge_pixels(image_size, circle)
+    if circle is None and wide:
         return None
+    if circle is None and first is not None and unmapped_share(first, rim) > 0:
+        circle = imaged_disc(first)
+        rim = edge_pixels(image_size, circle)
     w, h = image_size
     centre = np.array([(w - 1) / 2, (h - 1) / 2] if circle is None else circle[:2])
-    rim = edge_pixels(image_size, circle)
     return LitEdge(rim, centre + (1.0 - FOLD_MARGIN) * (rim - centre))
+
+
+def imaged_disc(model: CameraModel) -> Circle:
+    """(cx, cy, radius) px: the disc about the axis's pixel that ``model`` maps rays to,
+    to where its principal branch ends first (``principal_branch``), a twentieth in: its
+    fold is where Newton's steps stall."""
+    _, _, _, uv, branch = principal_branch(model, N_THETA // 2, N_PHI // 2)
+    centre = uv[0, 0]
+    last = np.maximum(branch.sum(axis=1) - 1, 0)  # each azimuth's last sample on the branch
+    radius = np.linalg.norm(uv[np.arange(len(last)), last] - centre, axis=-1)
+    return float(centre[0]), float(centre[1]), 0.95 * float(radius.min())
 
 
 def unmapped_share(model: CameraModel, pixels: np.ndarray) -> float:

@@ -13,7 +13,8 @@ from calib_core.evaluation.evaluate import evaluate, validation_residuals
 from calib_core.fit_report import CandidateScore, ChoiceReport
 from calib_core.fitting.choice import Candidate, choose
 from calib_core.fitting.metrics import rmse
-from calib_core.models.unproject import edge_pixels, lit_edge, unmapped_share
+from calib_core.models.fisheye import FisheyeModel
+from calib_core.models.unproject import edge_pixels, imaged_disc, lit_edge, unmapped_share
 from calib_core.pipeline import calibrate
 from calib_core.synth import opencv_lenses as lenses
 from calib_core.synth.opencv_lenses import around, fisheye_lens, rippled_lens, views_of, webcam_lens
@@ -220,6 +221,27 @@ def test_a_fold_in_the_frames_outermost_corners_does_not_rule_a_model_out():
     cal = calibrate(train, "auto")
     assert cal.settings["chosen"] == "zhang"
     assert evaluate(cal, holdout)["rmse"] < 0.2 * evaluate(calibrate(train, "rational"), holdout)["rmse"]
+
+
+def test_a_fisheye_whose_image_the_frame_cuts_is_judged_on_the_disc_it_images():
+    """OpenCV's fisheye projection of a Kannala-Brandt lens whose image ends at 674 px from the
+    centre, on a 1280 x 1024 frame (corners at 820 px), corners given with no image circle.
+    No right model maps the frame's dark corners: asked for them, the rule left out
+    Kannala-Brandt itself and took the rational model, 11 times worse on the hold-out."""
+    train = lenses.views_of(lenses.fisheye_lens, (1280, 1024), 10, seed=5, sigma=0.3, distance=300, spread=0.5)
+    holdout = lenses.views_of(lenses.fisheye_lens, (1280, 1024), 20, seed=1005, sigma=0.0, distance=300, spread=0.5)
+    cal = calibrate(train, "auto")
+    assert cal.settings["chosen"] == "fisheye"
+    assert evaluate(cal, holdout)["rmse"] < 1.1 * evaluate(calibrate(train, "fisheye"), holdout)["rmse"]
+    rows = {c.name: c for c in cal.diagnostics.model_choice.candidates}
+    assert rows["fisheye"].validation_rmse is not None
+
+
+def test_the_disc_a_camera_images_ends_where_its_radius_turns_back():
+    # θ_d = θ − 0.2 θ³ turns back at θ = √(1/0.6) = 1.29 rad, at 300 · 0.861 = 258.2 px
+    model = FisheyeModel([300.0, 300.0, 400.0, 300.0, 0.0], [-0.2, 0.0, 0.0, 0.0])
+    cx, cy, r = imaged_disc(model)
+    assert (cx, cy) == pytest.approx((400.0, 300.0)) and r == pytest.approx(0.95 * 258.2, rel=0.01)
 
 
 def test_the_image_edge_follows_a_lens_image_circle():

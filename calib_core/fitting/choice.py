@@ -17,9 +17,10 @@ hold the lowest error while a simpler, steadier and better one's is not
 
 A candidate whose distortion turns back inside the image (a polynomial or
 rational model past the reach of its corners: it maps no ray to part of the
-image's edge) is left out while another maps all of it: whatever its error
-on the views, it cannot serve the image's corners, which few views may not
-reach (docs/model-choice.md, "A model must map the whole image").
+lit image's edge) cannot serve the image's corners, whatever its error on the
+views: one that turns back a tenth of the way in is left out while another
+maps that far, one that turns back only in the outermost tenth while a
+simpler one maps the whole edge (docs/model-choice.md, step 3).
 """
 from __future__ import annotations
 

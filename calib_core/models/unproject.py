@@ -129,9 +129,9 @@ def lit_edge(image_size: tuple[int, int], circle: Circle | None, wide: bool,
     (the initialisation's) maps no ray to part of the frame's border, the lens images a
     disc short of the frame's corners (a fisheye whose image circle the frame cuts), which
     no right model maps past: the edge is that disc's (``imaged_disc``)."""
-    rim = edge_pixels(image_size, circle)
     if circle is None and wide:
         return None
+    rim = edge_pixels(image_size, circle)
     if circle is None and first is not None and unmapped_share(first, rim) > 0:
         circle = imaged_disc(first)
         rim = edge_pixels(image_size, circle)

@@ -48,11 +48,10 @@ WEBCAM = np.array([[600.0, 0, 327], [0, 600, 235], [0, 0, 1]])  # 640 x 480
 HD = np.array([[700.0, 0, 641], [0, 700, 357], [0, 0, 1]])  # 1280 x 720
 
 
-def opencv_lens(coefficients, camera=WEBCAM):
-    """``camera`` (3 x 3; default a 640 x 480 one) through OpenCV's model with these distortion
-    coefficients (5, 8, 12 or 14)."""
+def opencv_lens(coefficients):
+    """A 640 x 480 camera through OpenCV's model with these distortion coefficients (5, 8, 12 or 14)."""
     d = np.asarray(coefficients, dtype=float)
-    return lambda pc: cv2.projectPoints(pc, np.zeros(3), np.zeros(3), camera, d)[0].reshape(-1, 2)
+    return lambda pc: cv2.projectPoints(pc, np.zeros(3), np.zeros(3), WEBCAM, d)[0].reshape(-1, 2)
 
 
 WEBCAM_DISTORTION = [-0.3, 0.12, 0.001, -0.002, -0.02]

@@ -211,7 +211,7 @@ def test_a_fold_in_the_frames_outermost_corners_does_not_rule_a_model_out():
     5-coefficient model turns back in the frame's extreme corners, where no board reaches,
     and holds everywhere else. Ruled out for it, the rational model was taken and predicted
     the hold-out 55 times worse."""
-    lens = lenses.opencv_lens(lenses.WEBCAM_DISTORTION, camera=lenses.HD)
+    lens = lenses.through(lenses.webcam_lens)
     train = lenses.views_of(lens, (1280, 720), 10, seed=3, sigma=0.3, distance=600, spread=0.5)
     holdout = lenses.views_of(lens, (1280, 720), 20, seed=1003, sigma=0.0, distance=600, spread=0.5)
     zhang = calibrate(train, "zhang")

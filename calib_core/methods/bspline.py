@@ -341,7 +341,8 @@ def _choose_smoothing(problem: FieldProblem, samples, response, weights, views, 
     and field (``crossval.linearised_view_errors``), where the camera and
     the other views take up what a coarse field leaves (at a held camera a
     6 × 6 grid predicted left-out views 2× worse than 15 × 15 and the
-    hold-out 1.7× better, decentred lens). Of the grids, the one that
+    hold-out 1.7× better, decentred lens; a grid ``joint`` cannot score
+    enters the curve as skipped, with its reason). Of the grids, the one that
     predicts best (``_best_grid``).
     Candidates run cheapest (fewest intervals) and most likely (the paper's
     bandwidth) first; the first always runs. Finer grids stop once
@@ -356,7 +357,7 @@ def _choose_smoothing(problem: FieldProblem, samples, response, weights, views, 
     curve: list[dict[str, Any]] = []
     # (total intervals, intervals, bandwidth factor, λ, per-unit SSE, units, breaks) of each grid scored
     options: list[tuple[int, tuple[int, int], float, float, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]] = []
-    scored: dict[tuple[bytes, bytes], tuple[CVCurve, float, np.ndarray | None, np.ndarray]] = {}
+    scored: dict[tuple[bytes, bytes], tuple[CVCurve, float, np.ndarray | None, np.ndarray, str]] = {}
     jointly = joint is not None and len(counts) * len(factors) > 1  # grids to compare
     previous = None  # the λ of the grid scored last: where the next grid's search starts
     for factor in factors:
@@ -376,15 +377,14 @@ def _choose_smoothing(problem: FieldProblem, samples, response, weights, views, 
                                start=previous)
                 lam = previous = float(cv.lambdas[cv.best])
                 if jointly:  # per view
-                    sse, units = joint(breaks, lam)
+                    sse, units, unscored = joint(breaks, lam)
                 else:  # per group of the control points' validation
-                    sse, units = cv.group_sse[:, cv.best], cv.counts
-                scored[key] = (cv, lam, sse, units)
-            cv, lam, sse, units = scored[key]
+                    sse, units, unscored = cv.group_sse[:, cv.best], cv.counts, ""
+                scored[key] = (cv, lam, sse, units, unscored)
+            cv, lam, sse, units, unscored = scored[key]
             intervals = [len(breaks[0]) - 1, len(breaks[1]) - 1]
             if sse is None:
-                curve.append({"intervals": intervals, "bandwidth_factor": factor,
-                              "skipped": "more unknowns than the corners give equations"})
+                curve.append({"intervals": intervals, "bandwidth_factor": factor, "skipped": unscored})
                 continue
             curve.append({"intervals": intervals, "bandwidth_factor": factor, "lambda_smooth": lam,
                           "cv": float(cv.score[cv.best]), "validation": float(sse.sum() / units.sum()),
@@ -526,16 +526,22 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
         weights = sample_weights(samples, response, s)
 
         def joint(grid_breaks, grid_lam):
-            """A grid's joint fit (kept for reuse), its views' errors left out of it (None
-            if the corners cannot carry the grid) and their corner counts."""
+            """A grid's joint fit (kept for reuse), its views' errors left out of it and
+            their corner counts; or None for the errors, and why the grid is not scored."""
             start_model = _fitted(problem, grid_breaks, s.lambda_reg, grid_lam, first.model, samples, response,
                                   weights)
             units = np.bincount(sub.view_index, minlength=sub.n_views)
             if 2 * ok.sum() <= start_model.n_params + 6 * data.n_views:
-                return None, units
+                return None, units, "more unknowns than the corners give equations"
             fitted = levenberg_marquardt(start_model, first.poses, sub, scoring)
+            # Views are left out of a fit at its minimum. One stopped far from it, worse than the
+            # parametric camera, predicts nothing, and its views left out would each be refitted
+            # for hundreds of iterations (a fisheye on a pinhole base: 20 s of a 25 s calibration).
+            wrong = wrong_camera(fitted, reference, sub) if fitted.status == "max_iterations" else ""
+            if wrong:
+                return None, units, f"its joint fit stopped after {fitted.iterations} iterations, unconverged: {wrong}"
             joint_fits[(grid_breaks[0].tobytes(), grid_breaks[1].tobytes(), grid_lam)] = fitted
-            return linearised_view_errors(fitted.model, fitted.poses, sub).errors, units
+            return linearised_view_errors(fitted.model, fitted.poses, sub).errors, units, ""
 
         m, factor, lam, breaks, curve = _choose_smoothing(problem, samples, response, weights, views, s, joint)
         progress("control points", 0.5)

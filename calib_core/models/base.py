@@ -222,6 +222,7 @@ class ParametricModel(CameraModel):
 
 # Lengths (1, 1/2, 1/4, ...) a Newton step is tried at before its point counts as stuck.
 BACKTRACKS = 30
+HALF, SHORTER = np.array([0.5]), 0.5 ** np.arange(2.0, BACKTRACKS)
 
 
 def refine_preimage(model: CameraModel, xn: np.ndarray, uv: np.ndarray, tol: float,
@@ -248,15 +249,21 @@ def refine_preimage(model: CameraModel, xn: np.ndarray, uv: np.ndarray, tol: flo
         trial = xn[active] + step
         e1 = pixel_error(model, trial, uv[active])
         worse = ~(np.linalg.norm(e1, axis=-1) < e0)
-        t = np.ones(len(active))
-        for _ in range(BACKTRACKS - 1):  # only the points whose step overshot are evaluated again
+        # Only the points whose step overshot are evaluated again: at half the step, then,
+        # those still worse, at every shorter length at once (a point near a fold needs
+        # most of them, and one evaluation of all costs less than as many calls).
+        for lengths in (HALF, SHORTER):
             redo = np.flatnonzero(worse)
             if not len(redo):
                 break
-            t[redo] *= 0.5
-            trial[redo] = xn[active[redo]] + t[redo, None] * step[redo]
-            e1[redo] = pixel_error(model, trial[redo], uv[active[redo]])
-            worse[redo] = ~(np.linalg.norm(e1[redo], axis=-1) < e0[redo])
+            tried = xn[active[redo], None] + lengths[:, None] * step[redo, None]  # (R, L, 2)
+            errors = pixel_error(model, tried.reshape(-1, 2), np.repeat(uv[active[redo]], len(lengths), axis=0))
+            errors = errors.reshape(len(redo), len(lengths), 2)
+            better = np.linalg.norm(errors, axis=-1) < e0[redo, None]
+            first = np.argmax(better, axis=1)  # the longest that gains
+            ok = better[np.arange(len(redo)), first]
+            trial[redo[ok]], e1[redo[ok]] = tried[ok, first[ok]], errors[ok, first[ok]]
+            worse[redo[ok]] = False
         moved = active[~worse]
         xn[moved], err[moved] = trial[~worse], e1[~worse]
         active = moved[np.linalg.norm(err[moved], axis=-1) > tol]

@@ -9,8 +9,9 @@ represent every corner. From SCREEN_MIN_VIEWS views on, the fields are fitted
 only where a field over the most flexible core predicts views left out of it
 better than no field (``field_screen.py``); on fewer views every field is
 fitted. Every candidate fitted is scored on each view
-left out of its fit (``crossval.linearised_view_errors``; for a field over
-a core, the view leaves the core's own fit too) and the simplest within the
+left out of its fit (a parametric model refitted without it, a field in
+closed form, ``crossval``; for a field over a core, the view leaves the
+core's own fit too) and the simplest within the
 noise of the lowest is kept (``choice.choose``); it is returned as its own
 method returns it, so the calibration is written with that model's type
 (``opencv``, ``fisheye``, ``bspline``, ``hybrid``) and ``settings.chosen``
@@ -32,7 +33,7 @@ from .. import ranges
 from ..errors import DataError, SettingsError
 from ..fit_report import ChoiceReport
 from ..fitting.choice import Candidate, ModelChoice, choose
-from ..fitting.crossval import held_steps, linearised_view_errors
+from ..fitting.crossval import held_steps, linearised_view_errors, refitted_view_errors
 from ..fitting.init import initialise, poses_from_rays
 from ..fitting.solve import Data, SolveSettings, levenberg_marquardt, spread_views
 from ..models.base import CameraModel, fitted_parameter_count
@@ -245,8 +246,9 @@ def _screen(specs, cores: dict[str, Fit | None], sample: Data, image_size) -> Fi
 
 def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data,
               edge: LitEdge | None) -> ModelChoice:
-    """Each candidate's error on each view left out of its fit
-    (``crossval.linearised_view_errors``), on the corners every candidate
+    """Each candidate's error on each view left out of its fit (a parametric
+    model's refitted, ``crossval.refitted_view_errors``; a field's in closed
+    form, ``crossval.linearised_view_errors``), on the corners every candidate
     could use, and the one-standard-error choice among them; ``edge``: pixels
     along the edge of the lit image, which a candidate must map rays to
     (``choice.choose``; None: not known)."""
@@ -261,8 +263,11 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data,
             model = fit.result.model
             core = core_steps.get(spec.core) if spec.field is not None else None
             try:
-                held = None if core is None else held_steps(model, *core)
-                lovo = linearised_view_errors(model, fit.result.poses, sample.points(used), kept[used], held)
+                if spec.field is None:
+                    lovo = refitted_view_errors(model, fit.result.poses, sample.points(used), kept[used])
+                else:
+                    held = None if core is None else held_steps(model, *core)
+                    lovo = linearised_view_errors(model, fit.result.poses, sample.points(used), kept[used], held)
                 errors = lovo.errors
                 folds = (0.0, 0.0) if edge is None else edge.folds(model)
                 if spec.field is None:
@@ -272,9 +277,9 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data,
         candidates.append(Candidate(spec.name, spec.label, errors, reason,
                                     None if fit is None else fitted_parameter_count(fit.result.model),
                                     unmapped=folds[0], unmapped_inside=folds[1]))
-    how = (f"error per axis on each of the {sample.n_views} views left out of the fit (one Gauss-Newton step "
-           "from the full fit without the view, or a refit where that step leaves the linear regime; then only "
-           "the view's pose refit)")
+    how = (f"error per axis on each of the {sample.n_views} views left out of the fit (a parametric model refitted "
+           "without the view; a field one Gauss-Newton step from the full fit without it, or a refit where that step "
+           "leaves the linear regime; then only the view's pose refit)")
     if all(c.view_sse is None for c in candidates):
         raise DataError("no model could be validated on these corners: "
                         + "; ".join(dict.fromkeys(f"{c.label}: {c.error}" for c in candidates if c.error)))

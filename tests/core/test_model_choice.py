@@ -259,15 +259,14 @@ def test_the_image_edge_follows_a_lens_image_circle():
 
 
 @pytest.mark.parametrize("method, settings, tolerance", [
-    ("zhang", {}, 0.01), ("fisheye", {}, 0.01), ("rational", {}, 0.05),
     ("bspline", {"intervals": 6}, 0.01), ("bspline", {"intervals": 12}, 0.01), ("bspline", {"core": "rational"}, 0.01),
 ])
 @pytest.mark.slow
-def test_leaving_a_view_out_in_closed_form_agrees_with_refits(method, settings, tolerance):
-    """One Gauss-Newton step from the full fit stands in for refitting the
-    model without each view (then only the view's pose refit): the
-    squared validation error is within 1 % of converged refits (5 % for the rational
-    model, whose denominators curve), at a fraction of their cost."""
+def test_leaving_a_view_out_of_a_field_in_closed_form_agrees_with_refits(method, settings, tolerance):
+    """One Gauss-Newton step from the full fit stands in for refitting a field
+    without each view (then only the view's pose refit): the squared
+    validation error is within 1 % of converged refits, at a fraction of
+    their cost."""
     from calib_core import synth
     from calib_core.fitting.crossval import linearised_view_errors
     from calib_core.fitting.solve import SolveSettings, levenberg_marquardt, select_views
@@ -354,3 +353,47 @@ def test_a_field_over_a_core_is_scored_with_the_view_left_out_of_its_core_too():
         refits[v] = np.sum(alone.residuals ** 2)
     assert two_stage.sum() == pytest.approx(refits.sum(), rel=0.01)
     assert core_held.sum() < two_stage.sum()
+
+
+def _refits(model, poses, data) -> np.ndarray:
+    """Each view's squared error with the model refitted, converged, without it, then held while its pose is refit."""
+    from calib_core.fitting.solve import SolveSettings, levenberg_marquardt, select_views
+
+    out = np.zeros(data.n_views)
+    for v in range(data.n_views):
+        others = np.setdiff1d(np.arange(data.n_views), [v])
+        refit = levenberg_marquardt(model, poses[others], select_views(data, others),
+                                    SolveSettings(200, 1e-12, gauss_newton_trials=True)).model
+        held = levenberg_marquardt(refit, poses[[v]], select_views(data, np.array([v])),
+                                   SolveSettings(100, fix_model=True))
+        out[v] = np.sum(held.residuals ** 2)
+    return out
+
+
+@pytest.mark.slow
+def test_a_parametric_model_is_scored_by_refits_where_one_step_flatters_it():
+    """3 views of the decentred lens at σ = 1 px, seed 7. The rational model
+    misfits it, and one Gauss-Newton step from its full fit (which leaves out
+    the residuals' own curvature) said it predicts the views left out at
+    1.13 px, level with the paper's field (1.04); refitted without each view it
+    misses them by 2.0 px. Scored so, the default takes the paper's field: the
+    hold-out at 0.75 px, where the rational model, taken before, missed it by
+    5.1 px."""
+    from calib_core import synth
+    from calib_core.fitting.crossval import linearised_view_errors, refitted_view_errors
+    from calib_core.pipeline import to_data
+
+    s = synth.generate("decentred", 1.0, 7, 3)
+    data, _, _ = to_data(s.train)
+    rational = calibrate(s.train, "rational", outlier_sigma=0)
+    poses = np.array([np.concatenate([v.rvec, v.tvec]) for v in rational.views])
+    refitted = refitted_view_errors(rational.model, poses, data).errors.sum()
+    # the refits stop at ftol 1e-6 (a score needs no more), short of converging the rational model's valley
+    converged = _refits(rational.model, poses, data).sum()
+    assert 0.75 * converged < refitted <= 1.01 * converged
+    assert linearised_view_errors(rational.model, poses, data).errors.sum() < 0.5 * refitted
+
+    cal = calibrate(s.train)
+    scores = {c.name: c.validation_rmse for c in cal.diagnostics.model_choice.candidates}
+    assert scores["rational"] > 1.5 * scores["bspline"]
+    assert cal.settings["chosen"] == "bspline" and evaluate(cal, s.holdout)["rmse"] < 1.0

@@ -90,6 +90,26 @@ def rippled_lens(pc, amplitude=1.2):
                                                  0.75 * np.cos(2 * np.pi * x + 0.5) * np.sin(np.pi * y)])
 
 
+def equisolid_lens(pc, f=380.0, centre=(640.0, 512.0)):
+    """An equisolid-angle fisheye, r = 2f sin(θ/2), on 1280 x 1024: a projection no model of
+    freecal's has in closed form (Kannala-Brandt's polynomial approximates it)."""
+    return _radial_projection(pc, 2 * f * np.sin(_off_axis(pc) / 2), centre)
+
+
+def stereographic_lens(pc, f=300.0, centre=(640.0, 512.0)):
+    """A stereographic fisheye, r = 2f tan(θ/2), on 1280 x 1024."""
+    return _radial_projection(pc, 2 * f * np.tan(_off_axis(pc) / 2), centre)
+
+
+def _off_axis(pc):
+    return np.arctan2(np.hypot(pc[:, 0], pc[:, 1]), pc[:, 2])
+
+
+def _radial_projection(pc, radius, centre):
+    scale = radius / np.hypot(pc[:, 0], pc[:, 1])
+    return np.column_stack([scale * pc[:, 0] + centre[0], scale * pc[:, 1] + centre[1]])
+
+
 def beyond_180(pc):
     """A Kannala-Brandt lens of ~200° on 1280 x 1024 (θ from the optical axis, any sign of Z)."""
     k, d = (300.0, 301.0, 641.0, 509.0), (0.01, -0.005, 0.001, -0.0002)

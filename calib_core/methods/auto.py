@@ -9,9 +9,9 @@ represent every corner. From SCREEN_MIN_VIEWS views on, the fields are fitted
 only where a field over the most flexible core predicts views left out of it
 better than no field (``field_screen.py``); on fewer views every field is
 fitted. Every candidate fitted is scored on each view
-left out of its fit (a parametric model refitted without it, a field in
-closed form, ``crossval``; for a field over a core, the view leaves the
-core's own fit too) and the simplest within the
+left out of its fit (in closed form, the parametric models the choice
+turns on refitted without it: ``_validate``; for a field over a core, the
+view leaves the core's own fit too) and the simplest within the
 noise of the lowest is kept (``choice.choose``); it is returned as its own
 method returns it, so the calibration is written with that model's type
 (``opencv``, ``fisheye``, ``bspline``, ``hybrid``) and ``settings.chosen``

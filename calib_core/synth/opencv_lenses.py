@@ -113,9 +113,8 @@ def _radial_projection(pc, radius, centre):
 def beyond_180(pc):
     """A Kannala-Brandt lens of ~200° on 1280 x 1024 (θ from the optical axis, any sign of Z)."""
     k, d = (300.0, 301.0, 641.0, 509.0), (0.01, -0.005, 0.001, -0.0002)
-    rho = np.hypot(pc[:, 0], pc[:, 1])
-    theta = np.arctan2(rho, pc[:, 2])
-    scale = theta * (1 + d[0] * theta**2 + d[1] * theta**4 + d[2] * theta**6 + d[3] * theta**8) / rho
+    theta = _off_axis(pc)
+    scale = theta * (1 + d[0] * theta**2 + d[1] * theta**4 + d[2] * theta**6 + d[3] * theta**8) / np.hypot(pc[:, 0], pc[:, 1])
     return np.column_stack([k[0] * scale * pc[:, 0] + k[2], k[1] * scale * pc[:, 1] + k[3]])
 
 

@@ -15,6 +15,7 @@ from typing import Any, ClassVar, Self
 
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 
 from . import camera
 from .bspline_basis import BSplineField, breaks_of
@@ -115,7 +116,7 @@ class CameraModel(ABC):
             return self.pixel_of(camera.normalise(pc, self.base))
         xn, d_xn = camera.normalise(pc, self.base, jacobian=True)
         uv, d_uv, cols, vals = self.pixel_of(xn, jacobian=True)
-        return uv, d_uv @ d_xn, cols, vals
+        return uv, _chained(np.ascontiguousarray(d_uv), d_xn), cols, vals
 
     def ideal_pixel(self, xn: np.ndarray) -> np.ndarray:
         """``(xn, yn)`` into pixels with the intrinsics alone (no distortion)."""
@@ -207,17 +208,45 @@ class ParametricModel(CameraModel):
             xd = self.distort_normalised(xn)
             return np.stack([fx * xd[:, 0] + cx, fy * xd[:, 1] + cy], axis=-1)
         xd, d_xd, d_k = self.distort_normalised(xn, jacobian=True)
-        uv = np.stack([fx * xd[:, 0] + cx, fy * xd[:, 1] + cy], axis=-1)
-        f = np.array([fx, fy])
-        n, nk = len(xn), len(self.coefficients)
-        cols = np.empty((n, 2, 2 + nk), dtype=np.int64)
-        vals = np.empty((n, 2, 2 + nk))
-        cols[:, 0, :2], cols[:, 1, :2] = (0, 2), (1, 3)  # u: fx, cx; v: fy, cy
-        cols[:, :, 2:] = 4 + np.arange(nk)
-        vals[:, 0, 0], vals[:, 0, 1] = xd[:, 0], 1.0
-        vals[:, 1, 0], vals[:, 1, 1] = xd[:, 1], 1.0
-        vals[:, :, 2:] = f[None, :, None] * d_k[:, :, :nk]
-        return uv, f[None, :, None] * d_xd, cols, vals
+        return _pixel_rows(np.ascontiguousarray(xd), np.ascontiguousarray(d_xd), np.ascontiguousarray(d_k),
+                           len(self.coefficients), fx, fy, cx, cy)
+
+
+@njit(cache=True, nogil=True)
+def _chained(d_uv, d_xn):  # pragma: no cover (compiled)
+    """∂uv/∂Pc = ∂uv/∂xn (N, 2, 2) · ∂xn/∂Pc (N, 2, 3), point by point (numpy's
+    stacked product of small matrices costs more than the arithmetic)."""
+    n = len(d_uv)
+    out = np.empty((n, 2, 3))
+    for i in range(n):
+        for r in range(2):
+            for c in range(3):
+                out[i, r, c] = d_uv[i, r, 0] * d_xn[i, 0, c] + d_uv[i, r, 1] * d_xn[i, 1, c]
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _pixel_rows(xd, d_xd, d_k, nk, fx, fy, cx, cy):  # pragma: no cover (compiled)
+    """``ParametricModel.pixel_of``'s pixels (N, 2), ∂uv/∂xn (N, 2, 2) and
+    parameter Jacobian rows: u on fx, cx and the coefficients, v on fy, cy and
+    the coefficients (one pass instead of a dozen array copies)."""
+    n = len(xd)
+    uv = np.empty((n, 2))
+    d_uv = np.empty((n, 2, 2))
+    cols = np.empty((n, 2, 2 + nk), dtype=np.int64)
+    vals = np.empty((n, 2, 2 + nk))
+    for i in range(n):
+        for r in range(2):
+            f = fx if r == 0 else fy
+            uv[i, r] = f * xd[i, r] + (cx if r == 0 else cy)
+            d_uv[i, r, 0] = f * d_xd[i, r, 0]
+            d_uv[i, r, 1] = f * d_xd[i, r, 1]
+            cols[i, r, 0], cols[i, r, 1] = r, r + 2  # u: fx, cx; v: fy, cy
+            vals[i, r, 0], vals[i, r, 1] = xd[i, r], 1.0
+            for k in range(nk):
+                cols[i, r, 2 + k] = 4 + k
+                vals[i, r, 2 + k] = f * d_k[i, r, k]
+    return uv, d_uv, cols, vals
 
 
 # Lengths (1, 1/2, 1/4, ...) a Newton step is tried at before its point counts as stuck.

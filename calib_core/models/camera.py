@@ -84,39 +84,47 @@ def normalise(pc: np.ndarray, base: str = "pinhole", jacobian: bool = False):
         return xn, jac
     if base not in BASES:
         raise ValueError(f"unknown base projection {base!r}; expected one of {BASES}")
-    # Angular bases: xn = g(θ) (X, Y) / ρ with θ = atan2(ρ, Z).
-    rho2 = x * x + y * y
-    rho = np.sqrt(rho2)
-    theta = np.arctan2(rho, z)
-    if base == "equidistant":
-        g, dg = theta, np.ones_like(theta)
-    else:
-        g, dg = 2.0 * np.tan(theta / 2), 1.0 / np.cos(theta / 2) ** 2
-    small = rho < 1e-12 * np.maximum(np.abs(z), 1e-300)
-    safe_rho = np.where(small, 1.0, rho)
-    # g/ρ → 1/Z as ρ → 0 for both bases (θ ≈ ρ/Z).
-    scale = np.where(small, 1.0 / z, g / safe_rho)
-    xn = np.stack([x * scale, y * scale], axis=-1)
-    if not jacobian:
-        return xn
-    r2 = rho2 + z * z
-    # ∂θ/∂(X, Y, Z) = (X Z / (ρ r²), Y Z / (ρ r²), −ρ / r²)
-    dtheta = np.stack([x * z / (safe_rho * r2), y * z / (safe_rho * r2), -rho / r2], axis=-1)
-    # ∂scale/∂P = (dg θ' ρ − g ρ') / ρ², with ρ' = (X, Y, 0)/ρ
-    drho = np.stack([x / safe_rho, y / safe_rho, np.zeros_like(x)], axis=-1)
-    dscale = (dg[:, None] * dtheta * safe_rho[:, None] - g[:, None] * drho) / safe_rho[:, None] ** 2
-    dscale[small] = 0.0
-    jac = np.zeros((len(pc), 2, 3))
-    jac[:, 0, :] = x[:, None] * dscale
-    jac[:, 1, :] = y[:, None] * dscale
-    jac[:, 0, 0] += scale
-    jac[:, 1, 1] += scale
-    # Near the axis use the pinhole limit's derivative.
-    if np.any(small):
-        iz = 1.0 / z[small]
-        jac[small] = 0.0
-        jac[small, 0, 0] = iz
-        jac[small, 1, 1] = iz
+    xn, jac = _angular(np.ascontiguousarray(pc, dtype=np.float64), base == "stereographic", jacobian)
+    return (xn, jac) if jacobian else xn
+
+
+@njit(cache=True, nogil=True, error_model="numpy")  # inf/nan as numpy gives, not an exception
+def _angular(pc, stereographic, jacobian):  # pragma: no cover (compiled)
+    """``normalise`` on an angular base, point by point: xn = g(θ) (X, Y) / ρ
+    with θ = atan2(ρ, Z), g(θ) = θ (equidistant) or 2 tan(θ/2) (stereographic);
+    with ``jacobian`` also ∂xn/∂Pc (N, 2, 3)."""
+    n = len(pc)
+    xn = np.empty((n, 2))
+    jac = np.zeros((n if jacobian else 0, 2, 3))
+    for i in range(n):
+        x, y, z = pc[i, 0], pc[i, 1], pc[i, 2]
+        rho2 = x * x + y * y
+        rho = np.sqrt(rho2)
+        theta = np.arctan2(rho, z)
+        if stereographic:
+            g, dg = 2.0 * np.tan(theta / 2), 1.0 / np.cos(theta / 2) ** 2
+        else:
+            g, dg = theta, 1.0
+        # g/ρ → 1/Z as ρ → 0 for both bases (θ ≈ ρ/Z): the pinhole limit, and its derivative.
+        small = rho < 1e-12 * max(abs(z), 1e-300)
+        scale = 1.0 / z if small else g / rho
+        xn[i, 0], xn[i, 1] = x * scale, y * scale
+        if not jacobian:
+            continue
+        if small:
+            jac[i, 0, 0] = jac[i, 1, 1] = 1.0 / z
+            continue
+        r2 = rho2 + z * z
+        # ∂θ/∂(X, Y, Z) = (X Z / (ρ r²), Y Z / (ρ r²), −ρ / r²);
+        # ∂scale/∂P = (dg θ' ρ − g ρ') / ρ², with ρ' = (X, Y, 0)/ρ
+        dtheta = (x * z / (rho * r2), y * z / (rho * r2), -rho / r2)
+        drho = (x / rho, y / rho, 0.0)
+        for c in range(3):
+            dscale = (dg * dtheta[c] * rho - g * drho[c]) / rho**2
+            jac[i, 0, c] = x * dscale
+            jac[i, 1, c] = y * dscale
+        jac[i, 0, 0] += scale
+        jac[i, 1, 1] += scale
     return xn, jac
 
 

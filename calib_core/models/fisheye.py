@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import Any, Self
 
 import numpy as np
+from numba import njit
 
 from ..errors import FormatError
 from .base import ParametricModel
@@ -39,12 +40,8 @@ class FisheyeModel(ParametricModel):
     def distort_normalised(self, xn: np.ndarray, jacobian: bool = False):
         """xd = xn · (1 + k1 |xn|² + …) (N, 2); with ``jacobian`` also ∂xd/∂xn
         (N, 2, 2) and ∂xd/∂k (N, 2, n)."""
-        poly, dpoly, powers = self._poly(np.sum(xn * xn, axis=-1))
-        xd = xn * poly[:, None]
-        if not jacobian:
-            return xd
-        d_xn = poly[:, None, None] * np.eye(2) + 2.0 * dpoly[:, None, None] * xn[:, :, None] * xn[:, None, :]
-        return xd, d_xn, xn[:, :, None] * powers[:, None, :]
+        xd, d_xn, d_k = _distorted(np.ascontiguousarray(xn, dtype=np.float64), self.coefficients, jacobian)
+        return (xd, d_xn, d_k) if jacobian else xd
 
     def distortion_json(self) -> dict[str, Any]:
         return {"type": "fisheye", "coefficients": self.coefficients.tolist()}
@@ -60,3 +57,33 @@ class FisheyeModel(ParametricModel):
         if base != "pinhole":
             raise FormatError("base: the fisheye distortion type is defined on the pinhole base only")
         return cls(intrinsics, coeffs)
+
+
+@njit(cache=True, nogil=True)
+def _distorted(xn, k, jacobian):  # pragma: no cover (compiled)
+    """``FisheyeModel.distort_normalised`` (with ``jacobian``, its Jacobians), point by point:
+    xd = xn · poly(q), q = |xn|², ∂xd/∂xn = poly I + 2 poly'(q) xn xnᵀ,
+    ∂xd/∂k_j = xn q^j."""
+    n, nk = len(xn), len(k)
+    xd = np.empty((n, 2))
+    d_xn = np.empty((n if jacobian else 0, 2, 2))
+    d_k = np.empty((n if jacobian else 0, 2, nk))
+    for i in range(n):
+        x, y = xn[i, 0], xn[i, 1]
+        q = x * x + y * y
+        poly, dpoly, power = 1.0, 0.0, 1.0  # power: q^(j-1)
+        for j in range(nk):
+            dpoly += (j + 1) * k[j] * power
+            power *= q
+            poly += k[j] * power
+            if jacobian:
+                d_k[i, 0, j] = x * power
+                d_k[i, 1, j] = y * power
+        xd[i, 0], xd[i, 1] = x * poly, y * poly
+        if not jacobian:
+            continue
+        d_xn[i, 0, 0] = poly + 2.0 * dpoly * x * x
+        d_xn[i, 0, 1] = d_xn[i, 1, 0] = 2.0 * dpoly * x * y
+        d_xn[i, 1, 1] = poly + 2.0 * dpoly * y * y
+    return xd, d_xn, d_k
+

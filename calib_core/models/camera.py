@@ -31,7 +31,7 @@ def transform(poses: np.ndarray, view_index: np.ndarray, points: np.ndarray) -> 
     if poses.ndim != 2 or view_index.ndim != 1 or len(view_index) and not 0 <= view_index.min() <= view_index.max() < len(poses):
         p = poses[view_index]  # numpy's indexing: its wrap-around and its errors
         return rotate(p[:, :3], points) + p[:, 3:]
-    matrices = Rotation.from_rotvec(poses[:, :3]).as_matrix().reshape(-1, 3, 3)
+    matrices = _matrices(np.ascontiguousarray(poses[:, :3]))
     return _rigid(matrices, np.ascontiguousarray(poses[:, 3:]), np.asarray(view_index, dtype=np.int64),
                   np.ascontiguousarray(points, dtype=np.float64))
 
@@ -62,9 +62,68 @@ def d_transform(pc: np.ndarray) -> np.ndarray:
 
 def retract_poses(poses: np.ndarray, delta: np.ndarray) -> np.ndarray:
     """Apply left perturbations ``delta`` (V, 6): R ← exp(ω) R, t ← exp(ω) t + ν."""
-    step = Rotation.from_rotvec(delta[:, :3])
-    rot = step * Rotation.from_rotvec(poses[:, :3])
-    return np.hstack([rot.as_rotvec(), step.apply(poses[:, 3:]) + delta[:, 3:]])
+    return _retracted(np.ascontiguousarray(poses, dtype=np.float64), np.ascontiguousarray(delta, dtype=np.float64))
+
+
+# Rotations for the solver's few dozen poses an iteration, compiled: scipy's Rotation
+# costs ~50 µs a call in object creation, more than the arithmetic. Its algorithms:
+# unit quaternions (x, y, z, w), Taylor series below 1e-3 rad.
+@njit(cache=True, nogil=True)
+def _quaternion(rx, ry, rz):  # pragma: no cover (compiled)
+    angle = np.sqrt(rx * rx + ry * ry + rz * rz)
+    if angle <= 1e-3:
+        a2 = angle * angle
+        scale = 0.5 - a2 / 48 + a2 * a2 / 3840
+    else:
+        scale = np.sin(angle / 2) / angle
+    return scale * rx, scale * ry, scale * rz, np.cos(angle / 2)
+
+
+@njit(cache=True, nogil=True)
+def _matrix(x, y, z, w, out):  # pragma: no cover (compiled)
+    x2, y2, z2, w2 = x * x, y * y, z * z, w * w
+    xy, zw, xz, yw, yz, xw = x * y, z * w, x * z, y * w, y * z, x * w
+    out[0, 0], out[0, 1], out[0, 2] = x2 - y2 - z2 + w2, 2 * (xy - zw), 2 * (xz + yw)
+    out[1, 0], out[1, 1], out[1, 2] = 2 * (xy + zw), -x2 + y2 - z2 + w2, 2 * (yz - xw)
+    out[2, 0], out[2, 1], out[2, 2] = 2 * (xz - yw), 2 * (yz + xw), -x2 - y2 + z2 + w2
+
+
+@njit(cache=True, nogil=True)
+def _matrices(rvecs):  # pragma: no cover (compiled)
+    """(V, 3, 3) rotation matrices of rotation vectors (V, 3)."""
+    out = np.empty((len(rvecs), 3, 3))
+    for v in range(len(rvecs)):
+        x, y, z, w = _quaternion(rvecs[v, 0], rvecs[v, 1], rvecs[v, 2])
+        _matrix(x, y, z, w, out[v])
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _retracted(poses, delta):  # pragma: no cover (compiled)
+    """``retract_poses``: the quaternion product exp(ω)·R, back to a rotation
+    vector, and exp(ω) t + ν."""
+    out = np.empty_like(poses)
+    m = np.empty((3, 3))
+    for v in range(len(poses)):
+        px, py, pz, pw = _quaternion(delta[v, 0], delta[v, 1], delta[v, 2])
+        qx, qy, qz, qw = _quaternion(poses[v, 0], poses[v, 1], poses[v, 2])
+        w = pw * qw - (px * qx + py * qy + pz * qz)
+        x = pw * qx + qw * px + (py * qz - pz * qy)
+        y = pw * qy + qw * py + (pz * qx - px * qz)
+        z = pw * qz + qw * pz + (px * qy - py * qx)
+        if w < 0:  # the rotation vector of angle ≤ π
+            x, y, z, w = -x, -y, -z, -w
+        angle = 2 * np.arctan2(np.sqrt(x * x + y * y + z * z), w)
+        if angle <= 1e-3:
+            a2 = angle * angle
+            scale = 2 + a2 / 12 + 7 * a2 * a2 / 2880
+        else:
+            scale = angle / np.sin(angle / 2)
+        out[v, 0], out[v, 1], out[v, 2] = scale * x, scale * y, scale * z
+        _matrix(px, py, pz, pw, m)
+        for r in range(3):
+            out[v, 3 + r] = m[r, 0] * poses[v, 3] + m[r, 1] * poses[v, 4] + m[r, 2] * poses[v, 5] + delta[v, 3 + r]
+    return out
 
 
 def normalise(pc: np.ndarray, base: str = "pinhole", jacobian: bool = False):

@@ -60,7 +60,8 @@ BSPLINE_FLAGS = [
     ("--lambda-smooth", "lambda_smooth", _number_or_auto, "bending-energy weight of the field, or auto (validation over views)"),
     ("--time-budget", "time_budget", float, "seconds the search over knot grids and bandwidths may take "
                                             "(default: no limit)"),
-    ("--base", "base", str, "base projection: pinhole, equidistant, stereographic"),
+    ("--base", "base", str, "base projection of the paper's model (--core none): auto (the default: pinhole, "
+                           "or the base nearer a wide lens's initial camera), pinhole, equidistant, stereographic"),
     ("--max-iterations", "max_iterations", int, "Levenberg-Marquardt iteration cap"),
     ("--ftol", "ftol", float, "relative cost decrease that ends the solve"),
 ]

@@ -294,6 +294,15 @@ class Diagnostics:
                    excluded_views=None if excluded_views is None else _names(excluded_views))
 
 
+def grid_score(entry: dict[str, Any]) -> float | None:
+    """A scored knot grid's figure in ``diagnostics.smoothing_curve``: the error
+    (px² per corner) on views left out of its joint fit, which chose the grid,
+    or, where no joint fit scored it (one grid; calibrations from before),
+    its control points' left out at the held camera (``cv``)."""
+    value = entry.get("validation")
+    return entry.get("cv") if value is None else value
+
+
 def _json_of(part: Restart | ChoiceReport | SolverReport | ExcludedPoints | None) -> dict[str, Any] | None:
     return None if part is None else part.to_json()
 

@@ -8,7 +8,7 @@ from pathlib import Path
 from calib_core import Calibration, Observations, calibrate
 from calib_core.detection.detect import IMAGE_SUFFIXES
 from calib_core.errors import SettingsError
-from calib_core.fit_report import ChoiceReport
+from calib_core.fit_report import ChoiceReport, grid_score
 from calib_core.pipeline import OUTLIER_SIGMA
 
 from .detect import BOARD_HELP, TARGET_HELP, detect_with_report
@@ -270,7 +270,7 @@ def _curve_row(c: dict, chosen: list) -> tuple:
     shown = "—" if factor is None else f"{factor:g}"
     if "skipped" in c:
         return grid, shown, "—", "—", "—", f"skipped ({c['skipped']})"
-    return (grid, shown, c["lambda_smooth"], c["cv"], f"{c['dof']:.0f}",
+    return (grid, shown, c["lambda_smooth"], grid_score(c), f"{c['dof']:.0f}",
             "*" if [c["intervals"], factor] == chosen else "")
 
 

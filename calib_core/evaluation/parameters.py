@@ -44,7 +44,7 @@ def model_in_words(model: CameraModel) -> str:
             return f"{core} (its B-spline field held at zero)"
         return f"B-spline field over the {core}, {_grid(model)} knot intervals"
     if isinstance(model, BSplineModel):
-        return f"B-spline field over the pinhole (the paper's model), {_grid(model)} knot intervals"
+        return f"B-spline field over the {model.base} projection (the paper's model), {_grid(model)} knot intervals"
     if isinstance(model, ResidualFieldModel):
         kind = {"mls": "moving-least-squares", "tps": "thin-plate-spline"}.get(model.kind, model.kind)
         return f"{model_in_words(model.parametric)} with a {kind} residual field"

@@ -10,7 +10,7 @@ import html
 from collections.abc import Iterable, Sequence
 from typing import Any
 
-from ..fit_report import ChoiceReport
+from ..fit_report import ChoiceReport, grid_score
 
 # figure file → (id, title, caption), in the order the page shows them
 FIGURES = {
@@ -163,7 +163,7 @@ def _smoothing(cal: dict[str, Any]) -> str:
     chosen = [c.get("intervals") == s.get("intervals_used") and c.get("bandwidth_factor") == s.get("bandwidth_factor_used")
               and "skipped" not in c for c in curve]
     rows = [(" × ".join(map(str, c["intervals"])), _num(c.get("bandwidth_factor"), 1),
-             "—" if "skipped" in c else _num(c.get("lambda_smooth"), 3), "—" if "skipped" in c else _num(c.get("cv")),
+             "—" if "skipped" in c else _num(c.get("lambda_smooth"), 3), "—" if "skipped" in c else _num(grid_score(c)),
              "—" if "skipped" in c else _num(c.get("dof"), 0),
              "chosen" if ok else (f"skipped ({_e(c['skipped'])})" if "skipped" in c else ""))
             for c, ok in zip(curve, chosen, strict=True)]

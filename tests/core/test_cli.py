@@ -1,5 +1,7 @@
 """The freecal command as a user runs it: synth → calibrate → evaluate."""
+import itertools
 import json
+import re
 
 import pytest
 
@@ -21,6 +23,25 @@ def test_synth_calibrate_evaluate(tmp_path, capsys):
     assert main(["evaluate", str(cal), str(out / "holdout.json"), "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["rmse"] < 0.2 and len(result["views"]) > 3
+
+
+def test_the_paper_model_on_a_fisheye_says_its_base_and_marks_the_grid_that_scored_best(tmp_path, capsys):
+    """The summary's grid table shows the score that chose the grid (the views
+    left out of each grid's joint fit), so the row marked chosen is the lowest;
+    the model's words name the base "auto" took for the 200° lens."""
+    out = tmp_path / "set"
+    assert main(["synth", "--kind", "fisheye200", "-o", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["calibrate", str(out / "train.json"), "-o", str(tmp_path / "cal.json"), "--method", "bspline"]) == 0
+    printed = capsys.readouterr().out
+    assert "B-spline field over the equidistant projection" in printed
+    lines = printed.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("knot grid, bandwidth and smoothing")) + 3
+    rows = list(itertools.takewhile(lambda r: r and re.fullmatch(r"\d+x\d+", r[0]), map(str.split, lines[start:])))
+    assert len(rows) >= 2
+    scored = [r for r in rows if "skipped" not in r]
+    chosen = [r for r in scored if r[-1] == "*"]
+    assert len(chosen) == 1 and float(chosen[0][3]) == min(float(r[3]) for r in scored)
 
 
 def test_user_errors_exit_2_with_one_line(tmp_path, capsys):

@@ -79,3 +79,34 @@ def full_jacobian_pair(model, n_views: int, per_view: int):
 def test_full_jacobian_with_poses_matches_finite_differences():
     jac, num = full_jacobian_pair(next(models()), n_views=3, per_view=20)
     assert np.allclose(jac, num, rtol=1e-5, atol=2e-5)
+
+
+@pytest.mark.parametrize("angle", [0.0, 1e-5, 1e-3, 0.5, 3.0, np.pi - 1e-6])
+def test_the_compiled_rotations_are_scipys(angle):
+    """transform and retract_poses rotate as scipy's Rotation does (their kernels follow its
+    algorithms), from no rotation to one of nearly π, where the rotation vector's sign turns."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(4)
+    axes = rng.normal(size=(8, 3))
+    poses = np.hstack([angle * axes / np.linalg.norm(axes, axis=1, keepdims=True), rng.normal(size=(8, 3)) * 100])
+    points = rng.normal(size=(40, 3)) * 50
+    views = rng.integers(0, 8, size=40)
+    expected = Rotation.from_rotvec(poses[views, :3]).apply(points) + poses[views, 3:]
+    assert np.allclose(camera.transform(poses, views, points), expected, rtol=0, atol=1e-10)
+    delta = np.hstack([rng.normal(size=(8, 3)) * 0.01, rng.normal(size=(8, 3))])
+    step = Rotation.from_rotvec(delta[:, :3])
+    new = camera.retract_poses(poses, delta)
+    turned = (step * Rotation.from_rotvec(poses[:, :3])).inv() * Rotation.from_rotvec(new[:, :3])
+    assert np.max(turned.magnitude()) < 1e-12
+    assert np.allclose(new[:, 3:], step.apply(poses[:, 3:]) + delta[:, 3:], rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize("base", ["equidistant", "stereographic"])
+def test_an_angular_base_on_the_axis_and_past_90_degrees(base):
+    """On the optical axis the angular bases take the pinhole's limit (xn = 0, ∂xn/∂Pc = I/Z);
+    a point behind the camera's plane stays on its side, θ = atan2(ρ, Z) > 90° (formats.md)."""
+    xn, jac = camera.normalise(np.array([[0.0, 0.0, 2.0], [1.0, 0.0, -1.0]]), base, jacobian=True)
+    assert np.array_equal(xn[0], [0.0, 0.0]) and np.allclose(jac[0], [[0.5, 0, 0], [0, 0.5, 0]])
+    g = 3 * np.pi / 4 if base == "equidistant" else 2 * np.tan(3 * np.pi / 8)
+    assert np.allclose(xn[1], [g, 0.0])

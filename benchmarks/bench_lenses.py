@@ -246,7 +246,7 @@ def bases_table(a) -> None:
     rows, ratios = [], []
     for label, train, holdout in base_sets([int(s) for s in a.seeds.split(",")]):
         data, _, _ = to_data(train)
-        auto = base_for(initialise(data, train.image_size), data)
+        auto, _ = base_for(initialise(data, train.image_size), data)
         errors = {}
         for base in BASES:
             try:

@@ -206,6 +206,11 @@ def print_summary(cal: Calibration) -> None:
               f"({r.first.rmse:.3f} px first, {r.restarted.rmse:.3f} px restarted)")
         if r.warning:
             print(f"warning: {r.warning}")
+    choice = d.extra.get("base_choice")
+    if choice:  # base auto (the paper's model)
+        misfit = ", ".join(f"{b} {v:.3f}" for b, v in choice["misfit"].items())
+        print(f"base projection: {choice['base']}, chosen by the initial camera's radial profile, its misfit to "
+              f"each base's ({misfit}; the pinhole is left beyond {choice['max_misfit']:g} for a nearer base)")
     if "design" in d.extra:  # the B-spline method's own records
         g = d.extra["design"]
         print(f"knot intervals {g['intervals'][0]} x {g['intervals'][1]}, design rank {g['rank']}/{g['n_controls']}, "

@@ -227,9 +227,10 @@ def prior_field(init_model, intrinsics: np.ndarray, field: BSplineField, base: s
     return np.linalg.solve(a, b.T @ offset[ok]).reshape(field.n_u, field.n_v, 2)
 
 
-def base_for(init, data: Data) -> str:
-    """The paper's model's base projection for these corners ("auto"): the
-    pinhole (the paper's), unless the initial camera's radial profile over the
+def base_for(init, data: Data) -> tuple[str, dict[str, float]]:
+    """The paper's model's base projection for these corners ("auto"), and the
+    initial camera's misfit to each base (``_profile_misfit``): the pinhole
+    (the paper's), unless the initial camera's radial profile over the
     corners' angles lies more than PINHOLE_MISFIT from any pinhole camera's and
     nearer another base's. The field then carries what the base misses: on a
     fisheye, a pinhole base stretches the periphery towards infinity (tan θ)
@@ -241,7 +242,7 @@ def base_for(init, data: Data) -> str:
              "stereographic": 2 * np.tan(theta / 2), "equidistant": theta}
     misfit = {base: _profile_misfit(radius, g) for base, g in ideal.items()}
     nearest = min(misfit, key=lambda base: misfit[base])
-    return nearest if misfit["pinhole"] > PINHOLE_MISFIT else "pinhole"
+    return (nearest if misfit["pinhole"] > PINHOLE_MISFIT else "pinhole"), misfit
 
 
 def _profile_misfit(radius: np.ndarray, ideal: np.ndarray) -> float:
@@ -516,10 +517,13 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
                core_fit: Fit | None = None) -> Fit:
     """One fit with this core ("none": the paper's model)."""
     progress("initialise", 0.0)
-    asked_base = s.base
+    asked_base, base_choice = s.base, None
     if core == "none":
         init = initialise(data, image_size)
-        s = dataclasses.replace(s, base=base_for(init, data) if s.base == AUTO else s.base)
+        if s.base == AUTO:
+            base, misfit = base_for(init, data)
+            s = dataclasses.replace(s, base=base)
+            base_choice = {"base": base, "misfit": misfit, "max_misfit": PINHOLE_MISFIT}
         problem, start, poses, ok, reason = ideal_field_problem(init, data, image_size, s)
         init_info = {"focal_source": init.focal_source, "model": "kannala-brandt (4)", "rmse": init.rmse}
     else:
@@ -594,6 +598,8 @@ def fit_field(data: Data, image_size, s: BSplineSettings, core: str, progress: P
         "domain": list(problem.domain),
         "smoothing_curve": curve,
     }
+    if base_choice is not None:  # the initial camera's radial profile against each base's (base_for)
+        diagnostics["base_choice"] = base_choice
 
     progress("joint optimisation", 0.55)
 

@@ -19,6 +19,8 @@ def test_a_fisheye_takes_a_base_that_can_carry_it(kind, base):
     cal = calibrate(s.train, "bspline")
     assert cal.settings["base"] == "auto" and cal.settings["base_used"] == base
     assert cal.to_json()["base"] == base  # the JSON names the projection its model uses
+    why = cal.diagnostics.extra["base_choice"]  # and says why
+    assert why["base"] == base and why["misfit"]["pinhole"] > why["max_misfit"] > why["misfit"][base]
     assert evaluate(cal, s.holdout)["rmse"] < 0.15
     assert cal.diagnostics.restart is None
 

@@ -35,6 +35,7 @@ def test_the_paper_model_on_a_fisheye_says_its_base_and_marks_the_grid_that_scor
     assert main(["calibrate", str(out / "train.json"), "-o", str(tmp_path / "cal.json"), "--method", "bspline"]) == 0
     printed = capsys.readouterr().out
     assert "B-spline field over the equidistant projection" in printed
+    assert "base projection: equidistant, chosen by the initial camera's radial profile" in printed
     lines = printed.splitlines()
     start = next(i for i, line in enumerate(lines) if line.startswith("knot grid, bandwidth and smoothing")) + 3
     rows = list(itertools.takewhile(lambda r: r and re.fullmatch(r"\d+x\d+", r[0]), map(str.split, lines[start:])))

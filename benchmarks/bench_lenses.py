@@ -101,13 +101,18 @@ def lens_table(a) -> None:
     rows, passed = [], 0
     for name, lens in LENSES.items():
         for seed in (int(s) for s in a.seeds.split(",")):
-            train = lenses.views_of(lens, (640, 480), a.views, seed=seed, sigma=a.sigma, distance=450, spread=0.2)
-            holdout = lenses.views_of(lens, (640, 480), 10, seed=10 + seed, sigma=0.0, distance=450, spread=0.2)
-            row, ratio = default_row(name, seed, train, holdout)
+            row, ratio = default_row(name, seed, *lens_views(lens, seed, a.views, a.sigma))
             rows.append(row)
             passed += ratio <= TARGET_BEST
     markdown(DEFAULT_HEADERS, rows)
     print(f"{passed} of {len(rows)} within {TARGET_BEST:g} × the best candidate fitted alone.\n")
+
+
+def lens_views(lens, seed: int, views: int = 12, sigma: float = 0.2):
+    """(training, hold-out) views of one of LENSES through its 640 x 480 camera: the hold-out
+    10 noise-free views."""
+    return (lenses.views_of(lens, (640, 480), views, seed=seed, sigma=sigma, distance=450, spread=0.2),
+            lenses.views_of(lens, (640, 480), 10, seed=10 + seed, sigma=0.0, distance=450, spread=0.2))
 
 
 DEFAULT_HEADERS = ["lens", "seed", "default chose", "default hold-out", "CPU s", "best alone (hindsight)",
@@ -191,14 +196,19 @@ CAMERAS = {
 }
 
 
+def camera_views(name: str, seed: int):
+    """(training, hold-out) views of one of CAMERAS: 10 at σ = 0.3 px, 30 noise-free."""
+    lens, size, distance, spread = CAMERAS[name]
+    return (lenses.views_of(lens, size, 10, seed, 0.3, distance, spread),
+            lenses.views_of(lens, size, 30, seed + 1000, 0.0, distance, spread))
+
+
 def cameras_table(a) -> None:
     print("## Other cameras (10 views, σ = 0.3 px; hold-out: 30 noise-free views)\n")
     rows, ratios = [], []
-    for name, (lens, size, distance, spread) in CAMERAS.items():
+    for name in CAMERAS:
         for seed in (int(x) for x in a.wide_seeds.split(",")):
-            train = lenses.views_of(lens, size, 10, seed, 0.3, distance, spread)
-            holdout = lenses.views_of(lens, size, 30, seed + 1000, 0.0, distance, spread)
-            row, ratio = default_row(name, seed, train, holdout)
+            row, ratio = default_row(name, seed, *camera_views(name, seed))
             rows.append(row)
             ratios.append(ratio)
     markdown(DEFAULT_HEADERS, rows)
@@ -217,13 +227,10 @@ def base_sets(seeds: list[int]):
             yield f"{kind} (synth) {seed}", s.train, s.holdout
     for name in ("webcam", "mustache", "thin prism", "tilted sensor"):
         for seed in seeds:
-            yield (f"{name} {seed}", lenses.views_of(LENSES[name], (640, 480), 12, seed=seed, sigma=0.2, distance=450,
-                                                     spread=0.2),
-                   lenses.views_of(LENSES[name], (640, 480), 10, seed=10 + seed, sigma=0.0, distance=450, spread=0.2))
-    for name, (lens, size, distance, spread) in CAMERAS.items():
+            yield f"{name} {seed}", *lens_views(LENSES[name], seed)
+    for name in CAMERAS:
         for seed in seeds:
-            yield (f"{name} {seed}", lenses.views_of(lens, size, 10, seed, 0.3, distance, spread),
-                   lenses.views_of(lens, size, 30, seed + 1000, 0.0, distance, spread))
+            yield f"{name} {seed}", *camera_views(name, seed)
     for seed in seeds:
         yield (f"OpenCV's fisheye lens, within 60° {seed}",
                lenses.views_of(lenses.fisheye_lens, (1280, 1024), 10, seed=seed, sigma=0.3, distance=260, spread=0.5),

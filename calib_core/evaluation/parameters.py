@@ -256,7 +256,7 @@ def describe_camera(cal: Calibration, data: Data, poses: np.ndarray) -> dict[str
     # the corners' own rays (board points through their fitted poses): how far off axis the data reaches,
     # the one angle a circular fisheye's frame (no ray at its black corners) still has
     pc = camera.transform(poses, data.view_index, data.object_points)
-    angles = np.degrees(np.arctan2(np.hypot(pc[:, 0], pc[:, 1]), pc[:, 2]))
+    angles = np.degrees(camera.off_axis(pc))
     out["max_corner_angle_deg"] = float(angles.max()) if angles.size else None
     unc = None
     if full is not None:

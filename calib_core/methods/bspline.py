@@ -236,7 +236,7 @@ def base_for(init, data: Data) -> tuple[str, dict[str, float]]:
     fisheye, a pinhole base stretches the periphery towards infinity (tan θ)
     and its field, compressing it back, walks off."""
     pc = camera.transform(init.poses, data.view_index, data.object_points)
-    theta = np.arctan2(np.hypot(pc[:, 0], pc[:, 1]), pc[:, 2])
+    theta = camera.off_axis(pc)
     radius, _ = init.model.radial_profile(theta)
     ideal = {"pinhole": np.tan(np.minimum(theta, np.radians(PINHOLE_MAX_ANGLE_DEG))),
              "stereographic": 2 * np.tan(theta / 2), "equidistant": theta}

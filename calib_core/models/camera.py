@@ -47,6 +47,12 @@ def _rigid(matrices, translations, view, points):  # pragma: no cover (compiled)
     return out
 
 
+def off_axis(pc: np.ndarray) -> np.ndarray:
+    """Each camera-frame point's angle off the optical axis (N,), θ = atan2(ρ, Z)
+    (formats.md): past 90° for points behind the camera's plane."""
+    return np.arctan2(np.hypot(pc[:, 0], pc[:, 1]), pc[:, 2])
+
+
 def d_transform(pc: np.ndarray) -> np.ndarray:
     """∂Pc/∂δ for the left perturbation δ = (ω, ν): (N, 3, 6)."""
     n = len(pc)

@@ -24,18 +24,12 @@ class FisheyeModel(ParametricModel):
         super().__init__(intrinsics, coefficients)
         self.base = "equidistant"
 
-    def _poly(self, q: np.ndarray):
-        """1 + Σ k_i q^i and its derivative in q, for q = θ²."""
-        k = self.coefficients
-        powers = q[:, None] ** np.arange(1, len(k) + 1)  # q, q², …
-        poly = 1.0 + powers @ k
-        dpoly = (np.arange(1, len(k) + 1) * k * np.hstack([np.ones((len(q), 1)), powers[:, :-1]])).sum(axis=1)
-        return poly, dpoly, powers
-
     def radial_profile(self, theta: np.ndarray):
-        """θ_d(θ) = θ (1 + k1 θ² + …) and its slope dθ_d/dθ, for angles θ (N,)."""
-        poly, dpoly, _ = self._poly(theta**2)
-        return theta * poly, poly + 2.0 * theta**2 * dpoly
+        """θ_d(θ) = θ (1 + k1 θ² + …) and its slope dθ_d/dθ, for angles θ (N,):
+        the distortion along the x axis, where xn = (θ, 0)."""
+        theta = np.asarray(theta, dtype=np.float64)
+        xd, d_xn, _ = _distorted(np.column_stack([theta, np.zeros_like(theta)]), self.coefficients, True)
+        return xd[:, 0], d_xn[:, 0, 0]
 
     def distort_normalised(self, xn: np.ndarray, jacobian: bool = False):
         """xd = xn · (1 + k1 |xn|² + …) (N, 2); with ``jacobian`` also ∂xd/∂xn

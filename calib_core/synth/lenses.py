@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..models.camera import off_axis
+
 PAPER_KINDS = ("radial", "fisheye", "asymmetric")  # the paper's Table 4 lenses
 KINDS = PAPER_KINDS + ("freeform", "decentred")    # lenses on the pinhole plane (less than 180°)
 # Lenses beyond 180°: defined on the angle off the axis, θ = atan2(√(X² + Y²), Z), so a point
@@ -177,8 +179,7 @@ def in_view(kind: str, pc: np.ndarray) -> np.ndarray:
     """(N,) bool: camera-frame points (N, 3) the lens takes light from (in front of a pinhole-plane
     lens; within a wide lens's field, behind the camera's plane too)."""
     if kind in WIDE_KINDS:
-        theta = np.arctan2(np.hypot(pc[:, 0], pc[:, 1]), pc[:, 2])
-        return theta <= np.radians(WIDE_HALF_FIELD_DEG)
+        return off_axis(pc) <= np.radians(WIDE_HALF_FIELD_DEG)
     return pc[:, 2] > 1e-6
 
 

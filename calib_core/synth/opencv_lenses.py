@@ -8,6 +8,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from calib_core.models.camera import off_axis
 from calib_core.observations import Observations
 
 BOARD = np.array([[c * 30.0, r * 30.0, 0.0] for r in range(8) for c in range(11)])
@@ -93,16 +94,12 @@ def rippled_lens(pc, amplitude=1.2):
 def equisolid_lens(pc, f=380.0, centre=(640.0, 512.0)):
     """An equisolid-angle fisheye, r = 2f sin(θ/2), on 1280 x 1024: a projection no model of
     freecal's has in closed form (Kannala-Brandt's polynomial approximates it)."""
-    return _radial_projection(pc, 2 * f * np.sin(_off_axis(pc) / 2), centre)
+    return _radial_projection(pc, 2 * f * np.sin(off_axis(pc) / 2), centre)
 
 
 def stereographic_lens(pc, f=300.0, centre=(640.0, 512.0)):
     """A stereographic fisheye, r = 2f tan(θ/2), on 1280 x 1024."""
-    return _radial_projection(pc, 2 * f * np.tan(_off_axis(pc) / 2), centre)
-
-
-def _off_axis(pc):
-    return np.arctan2(np.hypot(pc[:, 0], pc[:, 1]), pc[:, 2])
+    return _radial_projection(pc, 2 * f * np.tan(off_axis(pc) / 2), centre)
 
 
 def _radial_projection(pc, radius, centre):
@@ -113,7 +110,7 @@ def _radial_projection(pc, radius, centre):
 def beyond_180(pc):
     """A Kannala-Brandt lens of ~200° on 1280 x 1024 (θ from the optical axis, any sign of Z)."""
     k, d = (300.0, 301.0, 641.0, 509.0), (0.01, -0.005, 0.001, -0.0002)
-    theta = _off_axis(pc)
+    theta = off_axis(pc)
     scale = theta * (1 + d[0] * theta**2 + d[1] * theta**4 + d[2] * theta**6 + d[3] * theta**8) / np.hypot(pc[:, 0], pc[:, 1])
     return np.column_stack([k[0] * scale * pc[:, 0] + k[2], k[1] * scale * pc[:, 1] + k[3]])
 

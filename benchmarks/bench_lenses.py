@@ -1,7 +1,7 @@
 """The default on lenses outside the paper's protocol: what lens would break it?
 
-python -m benchmarks lenses [--tables lenses,hd,elliptic,cameras,bases] [--seeds 0,1,2] [--views 12] [--sigma 0.2]
-                            [--wide-seeds 0,1,2,3,4,5] [--stretches 1.15,1.3,1.5]
+python -m benchmarks lenses [--tables lenses,hd,elliptic,cameras,bases,random] [--seeds 0,1,2] [--views 12]
+                            [--sigma 0.2] [--wide-seeds 0,1,2,3,4,5] [--stretches 1.15,1.3,1.5] [--random-seeds 0,...,11]
 
 Boards seen through lenses OpenCV itself projects (``calib_core.synth.opencv_lenses``:
 a 640 x 480 camera; OpenCV's webcam-like model, a mustache, a thin prism, a tilted
@@ -26,6 +26,10 @@ and a nearly distortion-free 1920 x 1080 camera.
 ``bases``: the paper's model (``--method bspline``) on each base projection, against the
 base "auto" takes (``bspline.base_for``), on the lenses above, the synthetic kinds, OpenCV's
 fisheye lens seen within 60° and BabelCalib's fisheye (train → test).
+
+``random``: lenses drawn at random (``opencv_lenses.random_lens``: OpenCV's rational model
+at four image sizes, with smooth bumps, with a tilted sensor, and OpenCV's fisheye model),
+none of them looked at before it was measured.
 """
 from __future__ import annotations
 
@@ -74,12 +78,14 @@ def best_alone(train, holdout) -> tuple[str, float]:
 
 def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks lenses")
-    ap.add_argument("--tables", default="lenses,hd,elliptic,cameras", help="any of lenses, hd, elliptic, cameras, bases")
+    ap.add_argument("--tables", default="lenses,hd,elliptic,cameras",
+                    help="any of lenses, hd, elliptic, cameras, bases, random")
     ap.add_argument("--seeds", default="0,1,2")
     ap.add_argument("--views", type=int, default=12, help="training views")
     ap.add_argument("--sigma", type=float, default=0.2, help="corner noise [px]")
     ap.add_argument("--stretches", default="1.15,1.3,1.5", help="elliptic: the lens's stretch along x")
     ap.add_argument("--wide-seeds", default="0,1,2,3,4,5", help="hd, elliptic and cameras: seeds")
+    ap.add_argument("--random-seeds", default=",".join(map(str, range(12))), help="random: the lenses drawn, per kind")
     a = ap.parse_args(argv)
     sys.stdout.reconfigure(line_buffering=True)
     if "lenses" in a.tables.split(","):
@@ -92,6 +98,8 @@ def main(argv: list[str]) -> int:
         cameras_table(a)
     if "bases" in a.tables.split(","):
         bases_table(a)
+    if "random" in a.tables.split(","):
+        random_table(a)
     return 0
 
 
@@ -177,21 +185,17 @@ def elliptic_table(a) -> None:
     summary("poses held", ratios["held"])
 
 
-def _camera(fx: float, cx: float, cy: float) -> np.ndarray:
-    return np.array([[fx, 0.0, cx], [0.0, fx, cy], [0.0, 0.0, 1.0]])
-
-
 # name → (projection, image size, board distance [mm], spread): OpenCV's model at other cameras
 # (``opencv_lenses.through``) and two fisheye projections no model of freecal's has in closed form
 CAMERAS = {
-    "telephoto 4000 px": (lenses.through(lenses.opencv_lens([0.05, 0, 0, 0, 0]), _camera(4000, 640, 512)),
+    "telephoto 4000 px": (lenses.through(lenses.opencv_lens([0.05, 0, 0, 0, 0]), lenses.camera_matrix(4000, 4000, 640, 512)),
                           (1280, 1024), 2500, 0.08),
-    "principal point off centre": (lenses.through(lenses.opencv_lens([-0.25, 0.08, 0, 0, 0]), _camera(700, 420, 300)),
+    "principal point off centre": (lenses.through(lenses.opencv_lens([-0.25, 0.08, 0, 0, 0]), lenses.camera_matrix(700, 700, 420, 300)),
                                    (1280, 720), 600, 0.4),
     "equisolid fisheye": (lenses.equisolid_lens, (1280, 1024), 300, 0.8),
     "stereographic fisheye": (lenses.stereographic_lens, (1280, 1024), 300, 0.8),
-    "pincushion": (lenses.through(lenses.opencv_lens([0.25, 0.1, 0, 0, 0]), _camera(900, 640, 360)), (1280, 720), 700, 0.4),
-    "nearly distortion-free": (lenses.through(lenses.opencv_lens([0.01, 0, 0, 0, 0]), _camera(1400, 960, 540)),
+    "pincushion": (lenses.through(lenses.opencv_lens([0.25, 0.1, 0, 0, 0]), lenses.camera_matrix(900, 900, 640, 360)), (1280, 720), 700, 0.4),
+    "nearly distortion-free": (lenses.through(lenses.opencv_lens([0.01, 0, 0, 0, 0]), lenses.camera_matrix(1400, 1400, 960, 540)),
                                (1920, 1080), 900, 0.4),
 }
 
@@ -201,6 +205,26 @@ def camera_views(name: str, seed: int):
     lens, size, distance, spread = CAMERAS[name]
     return (lenses.views_of(lens, size, 10, seed, 0.3, distance, spread),
             lenses.views_of(lens, size, 30, seed + 1000, 0.0, distance, spread))
+
+
+def random_views(kind: str, seed: int, views: int = 10):
+    """(training, hold-out) views of ``opencv_lenses.random_lens``: ``views`` at σ = 0.3 px, 10 noise-free."""
+    lens, size, distance, spread = lenses.random_lens(kind, seed)
+    return (lenses.views_of(lens, size, views, seed, 0.3, distance, spread),
+            lenses.views_of(lens, size, 10, seed + 1000, 0.0, distance, spread))
+
+
+def random_table(a) -> None:
+    print("## Lenses drawn at random (opencv_lenses.random_lens; 10 views, σ = 0.3 px; hold-out: 10 noise-free "
+          "views)\n")
+    rows, ratios = [], []
+    for kind in lenses.RANDOM_KINDS:
+        for seed in (int(x) for x in a.random_seeds.split(",")):
+            row, ratio = default_row(kind, seed, *random_views(kind, seed))
+            rows.append(row)
+            ratios.append(ratio)
+    markdown(DEFAULT_HEADERS, rows)
+    summary("default", ratios)
 
 
 def cameras_table(a) -> None:

@@ -46,7 +46,7 @@ def _number_or_auto(text: str):
 
 # (flag, settings key, type, help); only the flags given reach the method.
 BSPLINE_FLAGS = [
-    ("--core", "core", str, "parametric core under the field: none (the paper's model), rational, fisheye"),
+    ("--core", "core", str, "parametric core under the field: none (the paper's model), zhang, rational, fisheye"),
     ("--knots", "knots", str, "knot strategy: kde, kde-paper (the paper's candidates only), uniform"),
     ("--intervals", "intervals", _intervals, "knot intervals per direction: N, NxM or auto (validation over views)"),
     ("--max-intervals", "max_intervals", int, "cap of knot intervals per direction (kde)"),

@@ -99,11 +99,13 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
     wide = bool(past.any())
     specs = WIDE_CANDIDATES if wide else CANDIDATES
     share = 1.0 if sample is data else 0.8
-    fits, why_not, screen = _fit_candidates(specs, sample, image_size, scaled(progress, 0.0, 0.8 * share))
+    edge = lit_edge(image_size, s.image_circle, wide, init.model)
+    specs, fits, why_not, screen, folds = _fit_candidates(specs, sample, image_size, edge,
+                                                          scaled(progress, 0.0, 0.8 * share))
     if all(f is None for f in fits):
         raise DataError("no model fits these corners: " + "; ".join(dict.fromkeys(e for e in why_not if e)))
     progress("model choice", 0.8 * share)
-    choice = _validate(specs, fits, why_not, sample, lit_edge(image_size, s.image_circle, wide, init.model))
+    choice = _validate(specs, fits, why_not, sample, edge, folds)
     if screen is not None:
         choice.how += (f"; fields were fitted only if one over the {screen.core} model predicted the views left out "
                        f"of it better than no field (it did{'' if screen.pays else ' not'}: {screen.words()})")
@@ -182,9 +184,10 @@ def _fit_spec(spec: Spec, data: Data, image_size, cores: dict[str, Fit | None], 
     return core_fit or fit_core(data, image_size, spec.core, progress)
 
 
-def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
-    """Each candidate's fit (None if it cannot fit these corners, or if no
-    field pays), why not, and the field screen (None when not run).
+def _fit_candidates(specs, sample: Data, image_size, edge: LitEdge | None, progress: Progress):
+    """The candidates (``_over_a_core_that_maps``), each one's fit (None if it
+    cannot fit these corners, or if no field pays), why not, the field screen
+    (None when not run), and the folds measured so far (by model, ``LitEdge.folds``).
     The parametric models fit first. From SCREEN_MIN_VIEWS views on, a field
     is fitted only where one over the most flexible core predicts the views
     left out of it better than no field (``field_screen``): on a lens its
@@ -204,6 +207,7 @@ def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
         if spec.field is None:
             cores[spec.core] = fits[i] = _try(why_not, i, fit_core, sample, image_size, spec.core, part(i),
                                               cores.get("zhang"))
+    specs, folds = _over_a_core_that_maps(specs, cores, edge)
     fields = [i for i, spec in enumerate(specs) if spec.field is not None]
     progress("whether a field pays", min(fields, default=len(specs)) / len(specs))
     screen = _screen(specs, cores, sample, image_size)
@@ -211,7 +215,7 @@ def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
         for i in fields:
             why_not[i] = (f"not fitted: a field over the {screen.core} model predicts the views left out of it no "
                           f"better than no field ({screen.words()})")
-        return fits, why_not, screen
+        return specs, fits, why_not, screen, folds
     alone = [i for i in fields if specs[i].core is None]
     with ThreadPoolExecutor(max_workers=1) as pool:
         background = {i: pool.submit(_try, why_not, i, _fit_spec, specs[i], sample, image_size, {}, no_progress)
@@ -227,7 +231,43 @@ def _fit_candidates(specs, sample: Data, image_size, progress: Progress):
             if not future.done():
                 progress(f"{specs[i].label}: finishing (fitted alongside the others)", 1.0)
             fits[i] = future.result()
-    return fits, why_not, screen
+    return specs, fits, why_not, screen, folds
+
+
+def _over_a_core_that_maps(specs, cores: dict[str, Fit | None], edge: LitEdge | None):
+    """The candidates, the field over a core moved onto the most flexible core that maps
+    the lit image where its own does not; and the folds measured (by model).
+
+    A field over a core inherits the core's fold: where the rational model's distortion
+    turns back inside the image (a polynomial past the reach of its corners), the field
+    over it would be left out with it by the fold rule (``choice._leave_out_folding``)
+    however well it predicts, and the lens's own shape away from the corners taken by no
+    field at all (docs/model-choice.md, "Lenses drawn at random"). Its field then goes
+    over the most flexible core, by parameters, that fits these corners and maps as far
+    as the rule asks (the same tiers: a tenth of the way in, else the whole edge)."""
+    folds: dict[int, tuple[float, float]] = {}  # id(model) → (share of the edge, of a tenth in) unmapped
+    if edge is None:
+        return specs, folds
+
+    def folds_of(fit: Fit) -> tuple[float, float]:
+        key = id(fit.result.model)
+        if key not in folds:
+            folds[key] = edge.folds(fit.result.model)
+        return folds[key]
+
+    out = list(specs)
+    for i, spec in enumerate(specs):
+        own = cores.get(spec.core) if spec.field is not None and spec.field == spec.core else None
+        if own is None or folds_of(own) == (0.0, 0.0):
+            continue
+        others = [(sp, fit) for sp in specs if sp.field is None and sp.core != spec.core
+                  and (fit := cores.get(sp.core)) is not None]
+        others.sort(key=lambda pair: fitted_parameter_count(pair[1].result.model), reverse=True)
+        tier = 1 if folds_of(own)[1] > 0 else 0  # 1: judged a tenth of the way in; 0: at the edge itself
+        better = next((sp for sp, fit in others if folds_of(fit)[tier] == 0), None)
+        if better is not None:
+            out[i] = Spec(f"hybrid-{better.core}", f"B-spline field over the {better.label}", better.core, better.core)
+    return tuple(out), folds
 
 
 def _screen(specs, cores: dict[str, Fit | None], sample: Data, image_size) -> FieldScreen | None:
@@ -245,7 +285,7 @@ def _screen(specs, cores: dict[str, Fit | None], sample: Data, image_size) -> Fi
 
 
 def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data,
-              edge: LitEdge | None) -> ModelChoice:
+              edge: LitEdge | None, folds_known: dict[int, tuple[float, float]]) -> ModelChoice:
     """Each candidate's error on each view left out of its fit, on the corners
     every candidate could use, and the one-standard-error choice among them;
     ``edge``: pixels along the edge of the lit image, which a candidate must map
@@ -296,7 +336,8 @@ def _validate(specs, fits: list[Fit | None], why_not: list[str], sample: Data,
         if fit is not None:
             score(i)
             if lovo[i] is not None and edge is not None:
-                folds[i] = edge.folds(fit.result.model)
+                model = fit.result.model
+                folds[i] = folds_known[id(model)] if id(model) in folds_known else edge.folds(model)
     if all(v is None for v in lovo):
         raise DataError("no model could be validated on these corners: "
                         + "; ".join(dict.fromkeys(f"{sp.label}: {r}" for sp, r in zip(specs, reasons, strict=True) if r)))

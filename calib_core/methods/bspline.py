@@ -74,13 +74,13 @@ GRID_FIT_ITERATIONS = 100  # of a grid's joint fit while grids are scored (fit_f
 # Scott × factor candidates (method.md §"Adaptive knots"), the paper's 1.0 first:
 # with a time budget the search covers every grid at 1.0 before the others.
 AUTO_BANDWIDTH_FACTORS = (1.0, 1.2, 0.8, 1.5)
-CORES = ("none", "rational", "fisheye")
+CORES = ("none", "zhang", "rational", "fisheye")
 MAX_LAMBDA = 1e6  # regularisation weights: far past this the field is flat whatever the data
 
 
 @dataclass
 class BSplineSettings:
-    core: str = "none"  # "none" (the paper's model) | "rational" | "fisheye"
+    core: str = "none"  # "none" (the paper's model) | "zhang" (OpenCV's 5 coefficients) | "rational" | "fisheye"
     knots: str = "kde"  # "kde" | "kde-paper" (the paper's candidates only) | "uniform" | "explicit"
     interior_knots: tuple | None = None  # "explicit": ([u knots], [v knots]) in the field's pixels
     intervals: int | tuple[int, int] | str = AUTO  # per direction; "auto": chosen by validation over views

@@ -1,7 +1,7 @@
 """A B-spline field over a parametric core (formats.md ``hybrid``):
 ``uv = p + Δ(p)`` with ``p`` the core's pixel.
 
-The core (Kannala–Brandt or OpenCV's rational model) carries what a lens
+The core (Kannala–Brandt, or OpenCV's 5-coefficient or rational model) carries what a lens
 shares with the textbook models; the field, regularised towards zero, models
 only what the core misses. On a lens the core describes exactly the field
 stays near zero and the estimate keeps the core's low variance; on a freeform

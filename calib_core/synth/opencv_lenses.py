@@ -133,3 +133,86 @@ def around(n, seed, sigma):
             views.append({"name": f"v{len(views)}", "object_points": BOARD[inside].tolist(),
                           "image_points": seen.tolist(), "ids": np.flatnonzero(inside).tolist()})
     return Observations.from_json({"format": "freecal.observations/1", "image_size": [1280, 1024], "views": views})
+
+
+RANDOM_KINDS = ("rational", "bumpy", "tilted", "fisheye")
+RANDOM_SIZES = ((640, 480), (1280, 720), (1920, 1080), (1024, 1024))
+FISHEYE_SIZES = ((1280, 1024), (1600, 1200))
+
+
+def random_lens(kind: str, seed: int):
+    """A lens drawn at random, none of them tuned for: (projection, image size, board
+    distance [mm], spread) for ``views_of``.
+
+    - ``rational``: OpenCV's 8-coefficient model, a half field of view of 25-55°, barrel
+      or pincushion, a principal point up to 2 % off centre;
+    - ``bumpy``: the same with smooth bumps of 0.3-1.5 px that no parametric model has;
+    - ``tilted``: the same with a sensor tilted by up to 3° (OpenCV's 14 coefficients);
+    - ``fisheye``: OpenCV's Kannala-Brandt fisheye model at 1280 x 1024 or 1600 x 1200.
+
+    A real lens maps every ray to one pixel: past the angle where a drawn model first turns a
+    ray back inwards, no ray is seen (``_seen_within``; the views would otherwise hold corners
+    from beyond the field of view that the model maps back inside the image). And a lens that
+    is not a fisheye images the whole frame: a draw whose rays stop short of the frame's
+    border in some direction is drawn again."""
+    rng = np.random.default_rng([RANDOM_KINDS.index(kind), seed])
+    if kind == "fisheye":
+        w, h = FISHEYE_SIZES[seed % len(FISHEYE_SIZES)]
+        f = rng.uniform(0.22, 0.35) * w
+        k = camera_matrix(f, f, w / 2 + rng.normal(0, 8), h / 2 + rng.normal(0, 8))
+        d = np.array([rng.uniform(-0.05, 0.08), rng.uniform(-0.03, 0.02), rng.uniform(-0.005, 0.005),
+                      rng.uniform(-0.001, 0.001)])
+
+        def fisheye(pc):
+            return cv2.fisheye.projectPoints(pc.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), k, d)[0].reshape(-1, 2)
+        return _seen_within(fisheye)[0], (w, h), 0.9 * f * 330 / (w / 2), 0.7
+    w, h = RANDOM_SIZES[seed % len(RANDOM_SIZES)]
+    while True:
+        f = (w / 2) / np.tan(np.radians(rng.uniform(25, 55))) * rng.uniform(0.95, 1.05)
+        k = camera_matrix(f, f * rng.uniform(0.98, 1.02), w / 2 + rng.normal(0, 0.02 * w), h / 2 + rng.normal(0, 0.02 * h))
+        k1 = rng.uniform(-0.4, 0.2)
+        d = np.zeros(14 if kind == "tilted" else 8)
+        d[:6] = [k1, rng.uniform(-0.2, 0.3) * abs(k1), rng.normal(0, 0.002), rng.normal(0, 0.002),
+                 rng.uniform(-0.05, 0.05), rng.uniform(-0.1, 0.3) if rng.random() < 0.5 else 0.0]
+        if kind == "tilted":
+            d[12:] = np.radians(rng.uniform(-3, 3, 2))
+        amplitude, centres = rng.uniform(0.3, 1.5), rng.uniform([0, 0], [w, h], (4, 2))
+        widths, pushes = rng.uniform(0.15, 0.4, 4) * w, rng.normal(0, 1, (4, 2))
+
+        def project(pc, k=k, d=d, amplitude=amplitude, centres=centres, widths=widths, pushes=pushes):
+            uv = cv2.projectPoints(pc, np.zeros(3), np.zeros(3), k, d)[0].reshape(-1, 2)
+            if kind == "bumpy":
+                near = np.exp(-np.sum((uv[:, None, :] - centres) ** 2, axis=2) / (2 * widths**2))
+                uv = uv + amplitude * near @ pushes / 2
+            return uv
+        seen, rim = _seen_within(project)
+        if not np.any(np.all((rim >= 0) & (rim <= [w - 1, h - 1]), axis=1)):  # the frame is imaged to its border
+            return seen, (w, h), 0.9 * f * 330 / (w / 2), 0.5
+
+
+def _seen_within(project):
+    """``project`` seeing no ray past 95 % of the angle off axis where, in some azimuth, it
+    first stops moving the image outwards (NaN pixels there); and the pixels (36, 2) of the
+    last rays seen, in 36 azimuths."""
+    theta = np.radians(np.linspace(0.05, 89.9, 1800))
+    azimuth = np.linspace(0, 2 * np.pi, 36, endpoint=False)[:, None]
+    rays = np.stack([np.sin(theta) * np.cos(azimuth), np.sin(theta) * np.sin(azimuth),
+                     np.broadcast_to(np.cos(theta), (36, len(theta)))], axis=-1).reshape(-1, 3)
+    with np.errstate(all="ignore"):
+        pixels = project(rays).reshape(36, len(theta), 2)
+        radius = np.linalg.norm(pixels - project(np.array([[0.0, 0.0, 1.0]])), axis=2)
+        outwards = np.diff(radius, axis=1) > 0  # False where it turns back, or is not finite
+    first_turn = np.where(outwards.all(axis=1), len(theta) - 1, np.argmin(outwards, axis=1))
+    last = int(np.searchsorted(theta, 0.95 * theta[first_turn.min()], side="right")) - 1
+    reach = float(theta[last])
+
+    def seen(pc):
+        uv = project(pc)
+        uv[off_axis(pc) > reach] = np.nan
+        return uv
+    return seen, pixels[:, last]
+
+
+def camera_matrix(fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
+    """OpenCV's camera matrix (3, 3), skew 0."""
+    return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])

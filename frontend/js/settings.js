@@ -21,8 +21,8 @@ const BSPLINE = [
     help: "Pull of every control value towards the prior field; tiny, it only keeps empty cells determined." },
   { key: "lambda_smooth", label: "λ smooth", placeholder: "auto (validation)", type: "text",
     help: "How smooth the field must be (weight of its bending energy); empty: chosen by validation over the views." },
-  { key: "core", label: "Parametric core", options: ["none", "rational", "fisheye"], def: "none",
-    help: "A textbook model under the field: none (the paper's field on the pinhole), OpenCV's rational or Kannala–Brandt." },
+  { key: "core", label: "Parametric core", options: ["none", "zhang", "rational", "fisheye"], def: "none",
+    help: "A textbook model under the field: none (the paper's field on the pinhole), OpenCV's 5 coefficients (zhang), its rational model or Kannala–Brandt." },
   { key: "max_iterations", label: "Max iterations", placeholder: "500", type: "number",
     help: "Cap on the solver's iterations (it usually stops well before)." },
 ];

@@ -97,6 +97,6 @@ def test_the_default_takes_the_field_that_the_poses_hid():
     cal = calibrate(train, "auto")
     choice = cal.diagnostics.model_choice
     assert "each view's pose refit" in choice.how and "it did:" in choice.how
-    assert cal.settings["chosen"] in ("bspline", "hybrid-rational")
+    assert cal.settings["chosen"] == "bspline" or cal.settings["chosen"].startswith("hybrid-")
     parametric = min(rmse(validation_residuals(calibrate(train, m), holdout)[0]) for m in ("zhang", "fisheye", "rational"))
     assert rmse(validation_residuals(cal, holdout)[0]) < 0.5 * parametric

@@ -107,8 +107,9 @@ def fit_auto(data: Data, image_size, s: AutoSettings, progress: Progress) -> Fit
     progress("model choice", 0.8 * share)
     choice = _validate(specs, fits, why_not, sample, edge, folds)
     if screen is not None:
-        choice.how += (f"; fields were fitted only if one over the {screen.core} model predicted the views left out "
-                       f"of it better than no field (it did{'' if screen.pays else ' not'}: {screen.words()})")
+        choice.how += (f"; fields were fitted only if one over the {_core_label(specs, screen.core)} predicted the "
+                       f"views left out of it better than no field (it did{'' if screen.pays else ' not'}: "
+                       f"{screen.words()})")
     elif sample.n_views < SCREEN_MIN_VIEWS and any(sp.field is not None for sp in specs):
         choice.how += (f"; with {sample.n_views} views (fewer than {SCREEN_MIN_VIEWS}) every field was fitted, "
                        "as too few views are left out to tell beforehand whether one pays")
@@ -213,8 +214,8 @@ def _fit_candidates(specs, sample: Data, image_size, edge: LitEdge | None, progr
     screen = _screen(specs, cores, sample, image_size)
     if screen is not None and not screen.pays:
         for i in fields:
-            why_not[i] = (f"not fitted: a field over the {screen.core} model predicts the views left out of it no "
-                          f"better than no field ({screen.words()})")
+            why_not[i] = (f"not fitted: a field over the {_core_label(specs, screen.core)} predicts the views left "
+                          f"out of it no better than no field ({screen.words()})")
         return specs, fits, why_not, screen, folds
     alone = [i for i in fields if specs[i].core is None]
     with ThreadPoolExecutor(max_workers=1) as pool:
@@ -232,6 +233,11 @@ def _fit_candidates(specs, sample: Data, image_size, edge: LitEdge | None, progr
                 progress(f"{specs[i].label}: finishing (fitted alongside the others)", 1.0)
             fits[i] = future.result()
     return specs, fits, why_not, screen, folds
+
+
+def _core_label(specs, core: str) -> str:
+    """The words for a core among the candidates ("OpenCV rational model")."""
+    return next(sp.label for sp in specs if sp.field is None and sp.core == core)
 
 
 def _over_a_core_that_maps(specs, cores: dict[str, Fit | None], edge: LitEdge | None):

@@ -3,7 +3,8 @@ how well each candidate predicts views left out of its fit.
 
 Candidates, simplest first: OpenCV's 5-coefficient model, Kannala–Brandt,
 the rational model, the paper's B-spline field, and a field over the
-rational core. A lens past the pinhole's reach (corners beyond ~89° off
+rational core (over the 5-coefficient one where the rational model's
+distortion turns back inside the image: ``_over_a_core_that_maps``). A lens past the pinhole's reach (corners beyond ~89° off
 axis) gets Kannala–Brandt and a field over it instead, the only models that
 represent every corner. From SCREEN_MIN_VIEWS views on, the fields are fitted
 only where a field over the most flexible core predicts views left out of it

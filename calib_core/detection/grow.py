@@ -153,13 +153,24 @@ class Lattice:
         i, j = np.indices(self.p.shape[:2])
         return (i - self.r0 + j - self.c0 + self.parity) % 2 == 0
 
+    def sizes(self) -> list[tuple[int, int]]:
+        """The board's (rows, cols) the lattice may still grow within: a board that is not
+        square either way round while the corners known fit it both ways (a partial view's
+        seed was placed one way round, and which it is shows only once the lattice outgrows
+        the shorter side; ``placed`` turns it the other way if it grew so)."""
+        r, c = np.nonzero(self.known)
+        span = (r.max() - r.min() + 1, c.max() - c.min() + 1)
+        ways = [(self.rows, self.cols)] if self.rows == self.cols else [(self.rows, self.cols), (self.cols, self.rows)]
+        return [(n, m) for n, m in ways if span[0] <= n and span[1] <= m] or ways[:1]
+
     def box_allows(self) -> np.ndarray:
-        """(R, C) bool: positions that keep the lattice within the board's size."""
+        """(R, C) bool: positions that keep the lattice within the board's size (either way round
+        while that is open, ``sizes``)."""
         r, c = np.nonzero(self.known)
         i, j = np.indices(self.known.shape)
-        rows_ok = (np.maximum(i, r.max()) - np.minimum(i, r.min()) < self.rows)
-        cols_ok = (np.maximum(j, c.max()) - np.minimum(j, c.min()) < self.cols)
-        return rows_ok & cols_ok
+        span_r = np.maximum(i, r.max()) - np.minimum(i, r.min())
+        span_c = np.maximum(j, c.max()) - np.minimum(j, c.min())
+        return np.logical_or.reduce([(span_r < n) & (span_c < m) for n, m in self.sizes()])
 
     def placed(self) -> tuple[np.ndarray, np.ndarray]:
         """(ids (N,), pixels (N, 2)) on the board, shifted to its top-left with the colours kept
@@ -167,6 +178,9 @@ class Lattice:
         lattice leaves one: a board whose corner squares are black (an odd number of squares
         each way, BabelCalib's) cannot follow OpenCV's colour convention when seen whole."""
         r, c = np.nonzero(self.known)
+        points = self.p[r, c]
+        if r.max() - r.min() + 1 > self.rows or c.max() - c.min() + 1 > self.cols:
+            r, c = c, r  # grown the other way round (``sizes``): the same corners, transposed ids
         dr, dc = -r.min(), -c.min()
         if (dr + dc + self.parity) % 2:
             if c.max() - c.min() + 1 < self.cols:
@@ -175,7 +189,7 @@ class Lattice:
                 dr += 1
         ids = (r + dr) * self.cols + (c + dc)
         order = np.argsort(ids)
-        return ids[order].astype(np.int64), self.p[r, c][order]
+        return ids[order].astype(np.int64), points[order]
 
 
 def shift(a: np.ndarray, dr: int, dc: int) -> np.ndarray:
@@ -388,15 +402,21 @@ def _seed_check(gray: np.ndarray, lat: Lattice) -> tuple[np.ndarray | None, int]
 def _within_board(lat: Lattice, ci: np.ndarray, cj: np.ndarray, ok: np.ndarray) -> np.ndarray:
     """(N,) bool: new corners that keep the lattice within the board's size. Each alone does
     (``box_allows``), but a front on both sides at once can outgrow it by one: then the side
-    with fewer new corners is left out."""
-    keep = ok.copy()
+    with fewer new corners is left out. While the board may lie either way round
+    (``Lattice.sizes``), the way that keeps more of them."""
     r, c = np.nonzero(lat.known)
-    for new, old, size in ((ci, r, lat.rows), (cj, c, lat.cols)):
-        lo, hi = new < old.min(), new > old.max()
-        span = max(old.max(), new[keep].max(initial=old.max())) - min(old.min(), new[keep].min(initial=old.min())) + 1
-        if span > size:
-            keep &= ~(lo if (keep & lo).sum() < (keep & hi).sum() else hi)
-    return keep
+    best = None
+    for size_r, size_c in lat.sizes():
+        keep = ok.copy()
+        for new, old, size in ((ci, r, size_r), (cj, c, size_c)):
+            lo, hi = new < old.min(), new > old.max()
+            span = max(old.max(), new[keep].max(initial=old.max())) - min(old.min(), new[keep].min(initial=old.min())) + 1
+            if span > size:
+                keep &= ~(lo if (keep & lo).sum() < (keep & hi).sum() else hi)
+        if best is None or keep.sum() > best.sum():
+            best = keep
+    assert best is not None  # sizes() is never empty
+    return best
 
 
 def _grow_front(gray: np.ndarray, lat: Lattice, tried: np.ndarray, unlit: np.ndarray | UnlitDistance) -> bool:

@@ -160,3 +160,28 @@ def test_a_saddle_that_moves_with_the_window_is_not_located():
     assert not sure[0] and np.linalg.norm(p[0] - [40.5, 39.5]) > 1.0
     _, _, sure = corner_refine.saddle_points(np.full((80, 80), 90, np.uint8), start, np.array([6]))
     assert not sure[0]
+
+
+def test_a_partial_board_seeded_the_other_way_round_grows_over_all_of_it():
+    """A view shows 8 x 8 corners of an 11 x 8 board at first: its seed may be placed either way
+    round, and was grown within the board's size in the way it was placed. Where the board goes
+    on along the other axis (views rendered through lenses drawn at random: 3 of 48 lost 3
+    columns), growth now keeps both ways open until the lattice outgrows the shorter side."""
+    cols, rows, square = 11, 8, 50.0
+    rot = cv2.Rodrigues(np.radians([8.0, -6.0, 3.0]))[0]
+    pose = np.r_[cv2.Rodrigues(rot)[0].ravel(), -rot @ [250.0, 175.0, 0.0] + [0.0, 0.0, 700.0]]
+    img = render.render_view("radial", pose, (cols, rows), square, rng=np.random.default_rng(0))
+    true_ids, _, true_uv = render.true_corners("radial", pose, (cols, rows), square)
+    assert len(true_ids) == cols * rows
+    r, c = true_ids // cols, true_ids % cols
+    seed = c < 8  # the first 8 columns, every row: 8 x 8
+    turned = c[seed] * cols + r[seed]  # placed the other way round: true columns as rows
+    grown = grow_board(img, turned, true_uv[seed], cols, rows)
+    assert len(grown.ids) == cols * rows and grown.added == cols * rows - 64
+    d = np.linalg.norm(grown.points[:, None] - true_uv[None], axis=-1)
+    near = d.argmin(1)
+    assert d[np.arange(len(near)), near].max() < 0.5 and len(set(near.tolist())) == len(near)
+    ours = np.stack([grown.ids % cols, grown.ids // cols], 1)
+    truth = np.stack([true_ids[near] % cols, true_ids[near] // cols], 1)
+    motion, shift = best_motion(ours, truth)  # the ids are right up to a motion of the lattice
+    assert np.array_equal(ours @ motion.T + shift, truth)

@@ -139,10 +139,8 @@ def babel_reference(root: Path) -> Observations:
 
 
 def refinable_truth(kind: str, pose: np.ndarray, name: str) -> View:
-    """The exact corners of a rendered view whose refinement window (a quarter of the local
-    square, ``corner_refine.half_window`` of the distance to the nearest corner) lies inside the
-    image and inside the lens's coverage, and holds no other corner: the corners a
-    detector can be asked for."""
+    """The exact corners of a rendered view of the protocol's training board that a detector
+    can be asked for (``refinable``)."""
     cols, rows = synth.TRAIN_BOARD
     pts = synth.board_points(cols, rows, synth.SQUARE)
     from scipy.spatial.transform import Rotation
@@ -150,6 +148,15 @@ def refinable_truth(kind: str, pose: np.ndarray, name: str) -> View:
     uv = np.full((len(pts), 2), np.nan)
     front = synth.in_view(kind, pc)
     uv[front] = synth.true_project(kind, pc[front])
+    ids = np.flatnonzero(refinable(kind, uv, cols, rows))
+    return View(name, pts[ids], uv[ids], ids)
+
+
+def refinable(kind: str, uv: np.ndarray, cols: int, rows: int) -> np.ndarray:
+    """(N,) bool of a lattice's exact corners ``uv`` (rows × cols, row-major; NaN: not in
+    view) whose refinement window (a quarter of the local square, ``corner_refine.half_window``
+    of the distance to the nearest corner) lies inside the image and inside the lens's
+    coverage, and holds no other corner."""
     e_col, e_row = (e.reshape(-1, 2) for e in lattice_steps(uv.reshape(rows, cols, 2)))
     gap = corner_refine.nearest_corner(e_col, e_row)
     half = corner_refine.half_window(gap)
@@ -158,10 +165,8 @@ def refinable_truth(kind: str, pose: np.ndarray, name: str) -> View:
     ok &= np.all((uv >= half[:, None] + 1) & (uv <= np.array([w, h]) - 2 - half[:, None]), axis=1)
     _, covered = render.unit_rays(kind, synth.IMAGE_SIZE)
     dist = cv2.distanceTransform(covered.astype(np.uint8), cv2.DIST_L2, 5)
-    x, y = (np.clip(np.rint(np.nan_to_num(uv[:, k])).astype(int), 0, n - 1) for k, n in ((0, w), (1, h)))
-    ok &= dist[y, x] > np.sqrt(2) * half + 1
-    ids = np.flatnonzero(ok)
-    return View(name, pts[ids], uv[ids], ids)
+    x, y = (np.clip(np.rint(np.nan_to_num(uv[:, k])), 0, n - 1).astype(int) for k, n in ((0, w), (1, h)))
+    return ok & (dist[y, x] > np.sqrt(2) * half + 1)
 
 
 def _row_same_id(label: str, det: Observations | None, ref: Observations, cols: int, n_ref: int | None) -> tuple:

@@ -23,6 +23,18 @@ from .markers import Markers, why_none
 
 MAX_SHIFT = 1.0   # px from the markers' prediction
 
+# How OpenCV names corners. It names a corner only where both markers diagonal to it were
+# decoded (``minMarkers`` 2), and drops the whole board where one corner of its own
+# interpolation lies nearer another marker than its own (``checkMarkers``): every corner
+# beside a marker too small or steep to decode was lost, and steep views lost every corner.
+# Here each corner is placed and checked afresh from any one of its markers, and the markers'
+# layout is checked marker by marker (``layout_check``) (docs/detection.md, "ChArUco corners
+# beside one marker").
+_NAMING = cv2.aruco.CharucoParameters()
+_NAMING.minMarkers = 1
+_NAMING.checkMarkers = False
+AGREE = 0.5   # squares: two markers diagonal to a corner place it this close, or one of them is not the board's
+
 
 def detect(gray: np.ndarray, board: BoardSpec, markers: Markers):
     """(ids (N,), pixels (N, 2), reason if none) of a ChArUco board, from the image's markers of its ids."""
@@ -31,7 +43,14 @@ def detect(gray: np.ndarray, board: BoardSpec, markers: Markers):
     if len(mine_ids) == 0:
         return None, None, "board not found: " + why_none(gray, dictionary, 1, board.first_marker, board.n_markers,
                                                           markers)
-    detector = cv2.aruco.CharucoDetector(board.cv_charuco())
+    agree, disagree = layout_check(board, mine, mine_ids - board.first_marker)
+    if np.sum(disagree > agree) > np.sum(agree > disagree):
+        layout = " in the legacy layout" if board.legacy else ""
+        return None, None, (f"board not found: its {len(mine_ids)} markers are not where a {board.cols} × {board.rows} "
+                            f"ChArUco board{layout} puts them; check the board's size (squares across × down) and "
+                            "whether it is printed in OpenCV's legacy layout")
+    mine, mine_ids = mine[agree >= disagree], mine_ids[agree >= disagree]   # a misread marker goes alone
+    detector = cv2.aruco.CharucoDetector(board.cv_charuco(), _NAMING)
     cv_pts, ids, _, _ = detector.detectBoard(gray, markerCorners=list(mine.reshape(-1, 1, 4, 2)),
                                         markerIds=mine_ids.reshape(-1, 1).astype(np.int32))
     if ids is None or len(ids) == 0:
@@ -108,6 +127,38 @@ def predict(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.ndarray
     """Pixels (N, 2) of corners ``ids`` through the homographies of the detected markers
     diagonal to them (``marker_ids`` counted from the board's first), the map's Jacobian
     there (N, 2, 2: px per board unit), and which (N,) had a marker."""
+    corner, _, p, jac = _per_marker(board, marker_corners, marker_ids)
+    total, count, jsum = np.zeros((board.n_corners, 2)), np.zeros(board.n_corners), np.zeros((board.n_corners, 2, 2))
+    np.add.at(total, corner, p)
+    np.add.at(count, corner, 1.0)
+    np.add.at(jsum, corner, jac)
+    known = count[ids] > 0
+    n = np.maximum(count[ids], 1.0)
+    return total[ids] / n[:, None], jsum[ids] / n[:, None, None], known
+
+
+def layout_check(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(agree (K,), disagree (K,)): for each decoded marker, at how many of the corners it
+    shares with another decoded marker (the two diagonal to a corner) the two place the
+    corner within ``AGREE`` of a square of each other, and at how many they do not.
+
+    A marker's homography holds at its own corners under any lens, so two markers of the
+    board place their shared corner alike; a misread marker, or a board of another size or
+    layout, puts the two a square or more apart."""
+    corner, slot, p, jac = _per_marker(board, marker_corners, marker_ids)
+    order = np.argsort(corner, kind="stable")
+    corner, slot, p, jac = corner[order], slot[order], p[order], jac[order]
+    first = np.flatnonzero(corner[1:] == corner[:-1])          # two markers name this corner
+    square = board.square_size * np.linalg.svd(0.5 * (jac[first] + jac[first + 1]), compute_uv=False)[:, -1]
+    ok = np.linalg.norm(p[first] - p[first + 1], axis=1) < AGREE * square
+    k = len(marker_ids)
+    count = lambda m: np.bincount(slot[first][m], minlength=k) + np.bincount(slot[first + 1][m], minlength=k)  # noqa: E731
+    return count(ok), count(~ok)
+
+
+def _per_marker(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.ndarray):
+    """(corner id, marker slot in ``marker_ids``, pixel (P, 2), Jacobian (P, 2, 2)) of each
+    corner through the homography of each detected marker diagonal to it."""
     cv_board = board.cv_charuco()
     obj = np.asarray(cv_board.getObjPoints(), np.float64)[:, :, :2]
     corner, marker = _diagonal_markers(board)
@@ -120,13 +171,7 @@ def predict(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.ndarray
     q = np.einsum("kij,kj->ki", h, np.column_stack([target, np.ones(len(target))]))
     p = q[:, :2] / q[:, 2:]
     jac = (h[:, :2, :2] - p[:, :, None] * h[:, 2:, :2]) / q[:, 2:, None]   # the homography's Jacobian there
-    total, count, jsum = np.zeros((board.n_corners, 2)), np.zeros(board.n_corners), np.zeros((board.n_corners, 2, 2))
-    np.add.at(total, corner, p)
-    np.add.at(count, corner, 1.0)
-    np.add.at(jsum, corner, jac)
-    known = count[ids] > 0
-    n = np.maximum(count[ids], 1.0)
-    return total[ids] / n[:, None], jsum[ids] / n[:, None, None], known
+    return corner, slot[marker], p, jac
 
 
 def homographies(src: np.ndarray, dst: np.ndarray) -> np.ndarray:

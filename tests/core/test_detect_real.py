@@ -55,6 +55,9 @@ def test_charuco_full_and_occluded():
     board = BoardSpec.parse("charuco:5x7:40mm:20mm:DICT_6X6_250")
     for v in det.observations.views:
         np.testing.assert_allclose(v.object_points, board.object_points(v.ids))
+    wrong = _detect("opencv-charuco-5x7", "charuco:7x5:40mm:20mm:DICT_6X6_250")   # turned: other ids there
+    assert wrong.observations is None
+    assert all("not where a 7 × 5 ChArUco board" in r.reason for r in wrong.reports)
 
 
 def _babel_reference(root, name):

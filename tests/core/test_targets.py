@@ -86,23 +86,26 @@ def test_every_board_of_a_rendered_room_corner_is_found_with_its_own_ids():
 
 
 @pytest.mark.slow
-def test_a_rendered_room_corner_calibrates_the_lens_as_well_as_its_boards_one_by_one(tmp_path):
-    """Twelve rendered views, detected as one object: the 3-D calibration finds the
-    true camera, and predicts the hold-out views within 10 % of the same corners
-    calibrated as planar views, one per board (the same corner count)."""
+@pytest.mark.parametrize("kind, method, seed", [("radial", "zhang", 0), ("fisheye", "auto", 0), ("fisheye", "auto", 2)])
+def test_a_rendered_room_corner_calibrates_the_lens_as_well_as_its_boards_one_by_one(tmp_path, kind, method, seed):
+    """Twelve rendered views, detected as one object: the 3-D calibration predicts the
+    hold-out views within 10 % of the same corners calibrated as planar views, one per
+    board (the same corner count); the radial lens's camera is the true one. Through the
+    fisheye, the default's choice must not extrapolate worse for the object than for its boards."""
     from calib_core.detection.detect import detect_images
 
     t = targets.corner()
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(seed)
     for k, pose in enumerate(targets.corner_poses(12, rng)):
-        cv2.imwrite(str(tmp_path / f"corner_{k:02d}.png"), render_target.render_target("radial", t, pose, rng))
+        cv2.imwrite(str(tmp_path / f"corner_{k:02d}.png"), render_target.render_target(kind, t, pose, rng))
     obs = detect_images(tmp_path, t).observations
     assert obs is not None and len(obs.views) == 12 and obs.extra["target"]["format"] == "freecal.target/1"
-    solid = calibrate(obs, "zhang")
-    fx, fy, cx, cy = synth.INTRINSICS
-    np.testing.assert_allclose(solid.model.intrinsics[:4], [fx, fy, cx, cy], rtol=2e-3)
-    holdout = synth.generate("radial").holdout
-    planar = calibrate(t.split(obs), "zhang")
+    solid = calibrate(obs, method)
+    if kind == "radial":
+        fx, fy, cx, cy = synth.INTRINSICS
+        np.testing.assert_allclose(solid.model.intrinsics[:4], [fx, fy, cx, cy], rtol=2e-3)
+    holdout = synth.generate(kind).holdout
+    planar = calibrate(t.split(obs), method)
     assert evaluate(solid, holdout)["rmse"] <= 1.1 * evaluate(planar, holdout)["rmse"]
 
 
@@ -148,6 +151,49 @@ def test_tags_of_another_dictionary_and_mirrored_boards_are_named_as_such():
     assert mirrored.status == "rejected" and "mirrored" in mirrored.reason
     other_ids = detect_gray(img, BoardSpec.from_json({**right.to_json(), "first_marker": 100}))
     assert "ids 100-139" in other_ids.reason and "ids 0-39" in other_ids.reason
+
+
+def test_a_charuco_corner_beside_one_unreadable_marker_is_found():
+    """A marker covered (a finger, glare, too small to decode) leaves each of the four corners
+    round it one decoded marker: each is still found, where the truth has it."""
+    spec = targets.corner().boards[0].spec
+    pose = np.concatenate([Rotation.from_rotvec([0.3, -0.2, 0.1]).as_rotvec(), [-180.0, -180.0, 450.0]])
+    turn = Rotation.from_rotvec(pose[:3])
+    corners = spec.object_points(np.arange(spec.n_corners))
+    truth = synth.true_project("radial", turn.apply(corners) + pose[3:])
+    centre = np.asarray(spec.cv_charuco().getObjPoints(), np.float64)[12].mean(axis=0)   # a marker mid-board
+    at = synth.true_project("radial", turn.apply(centre[None]) + pose[3:])[0]
+    img = render_target.render_boards("radial", [(spec, pose)])
+    square_px = np.linalg.norm(truth[1] - truth[0])
+    cv2.circle(img, tuple(int(round(v)) for v in at), int(0.25 * square_px), 255, -1)   # its bits, not its corners
+    res = detect_gray(img, spec)
+    beside = np.flatnonzero(np.linalg.norm(corners[:, :2] - centre[:2], axis=1) < 0.75 * spec.square_size)
+    assert len(beside) == 4 and np.isin(beside, res.ids).all()
+    assert np.linalg.norm(res.points - truth[res.ids], axis=1).max() < 0.3
+
+
+def test_a_steep_charuco_board_keeps_the_corners_its_markers_name():
+    """Seen 65° off its normal, the far markers are too small to read or lie beside unread
+    ones: each corner one decoded marker names is found, where the truth has it."""
+    spec = BoardSpec.parse("charuco:9x9:28mm:19mm:DICT_4X4_50")
+    corners = spec.object_points(np.arange(spec.n_corners))
+    turn = Rotation.from_euler("y", 65, degrees=True)
+    shift = np.array([0.0, 0.0, 260.0]) - turn.apply(corners.mean(axis=0))
+    res = detect_gray(render_target.render_boards("radial", [(spec, np.concatenate([turn.as_rotvec(), shift]))]), spec)
+    assert res.status == "used" and res.ids is not None and res.points is not None
+    assert len(res.ids) >= 36   # OpenCV's naming alone: 24
+    truth = synth.true_project("radial", turn.apply(corners) + shift)
+    assert np.linalg.norm(res.points - truth[res.ids], axis=1).max() < 0.3
+
+
+def test_a_charuco_board_of_another_size_is_named_as_such():
+    """The same markers read on a board of another width sit where that board has other ids:
+    no corner is named, and the reason says what to check. (A board with fewer rows of the
+    same width is the same board's first rows: its ids and corners are right.)"""
+    img = _charuco_view()
+    for size in ("7x9", "10x9", "11x11"):
+        res = detect_gray(img, BoardSpec.parse(f"charuco:{size}:40mm:30mm:DICT_5X5_250"))
+        assert res.status == "rejected" and "not where a" in res.reason and "board's size" in res.reason
 
 
 def test_the_example_in_the_targets_page_is_a_valid_target():

@@ -51,11 +51,11 @@ def random_board(rng: np.random.Generator) -> BoardSpec:
     if kind == "chessboard":
         return BoardSpec.parse(f"chessboard:{rng.integers(3, 14)}x{rng.integers(3, 11)}:{rng.uniform(15, 40):.1f}mm")
     while kind == "charuco":
-        square = rng.uniform(15, 40)
+        square = int(rng.integers(15, 41))   # whole mm, markers a twentieth of a square: the texture draws them exactly
         legacy = ":legacy" if rng.random() < 0.2 else ""
         try:
-            return BoardSpec.parse(f"charuco:{rng.integers(3, 11)}x{rng.integers(3, 10)}:{square:.1f}mm:"
-                                   f"{square * rng.uniform(0.6, 0.8):.1f}mm:{rng.choice(DICTIONARIES)}{legacy}")
+            return BoardSpec.parse(f"charuco:{rng.integers(3, 11)}x{rng.integers(3, 10)}:{square}mm:"
+                                   f"{square * rng.integers(12, 17) / 20:g}mm:{rng.choice(DICTIONARIES)}{legacy}")
         except SettingsError:  # more markers than the dictionary holds: drawn again
             continue
     return BoardSpec.parse(f"aprilgrid:{rng.integers(3, 8)}x{rng.integers(3, 8)}:{rng.uniform(20, 40):.1f}mm:"

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..board import BoardSpec
 from . import corner_refine
-from .markers import Markers, why_none
+from .markers import Markers, homographies, layout_verdict, why_none, wrong_layout_reason
 
 BORDER_BITS = 2   # Kalibr's tags have a two-bit black border (OpenCV's default is one)
 
@@ -59,6 +59,10 @@ def detect(gray: np.ndarray, board: BoardSpec, markers: Markers | None = None):
                                                           board.n_markers, found)
     once = np.flatnonzero(np.bincount(tags - board.first_marker)[tags - board.first_marker] == 1)
     corners, tags = corners[once], tags[once]     # a tag id seen twice: a stray tag, neither is trusted
+    keep, wrong = layout_check(board, corners, tags - board.first_marker)
+    if wrong:
+        return None, None, wrong_layout_reason(f"{len(tags)} tags", f"{board.cols} × {board.rows} AprilGrid", "tags")
+    corners, tags = corners[keep], tags[keep]      # a misread tag goes alone
     ids = corner_ids(tags - board.first_marker, board.cols).reshape(-1)
     raw = corners.reshape(-1, 2).astype(np.float64)
     edge = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).mean(axis=1)   # (T,) px
@@ -72,3 +76,26 @@ def detect(gray: np.ndarray, board: BoardSpec, markers: Markers | None = None):
     if not keep.any():
         return None, None, f"too few corners (0 of {len(raw)} tag corners confirmed)"
     return ids[keep], pts[keep], ""
+
+
+# A tag's homography, from its four corners, puts a board neighbour's two nearest corners (a
+# spacing away) within this share of the neighbour's size; measured on 1 428 pairs of rendered
+# random grids: 0.25 at most, 0.02 at the median. A grid of another width puts them a tag away.
+AGREE = 0.35
+
+
+def layout_check(board: BoardSpec, corners: np.ndarray, tags: np.ndarray) -> tuple[np.ndarray, bool]:
+    """(keep (T,), wrong layout) of decoded tags (pixels (T, 4, 2), indices from the board's
+    first) (``markers.layout_verdict``), each pair two tags side by side on the board."""
+    obj = board.object_points(corner_ids(tags, board.cols).reshape(-1))[:, :2].reshape(len(tags), 4, 2)
+    row, col = tags // board.cols, tags % board.cols
+    first, second = np.nonzero(np.abs(row[:, None] - row[None]) + np.abs(col[:, None] - col[None]) == 1)
+    px = corners.astype(np.float64)
+    h = homographies(obj[first], px[first])
+    q = np.einsum("pij,pkj->pki", h, np.concatenate([obj[second], np.ones((len(second), 4, 1))], axis=2))
+    miss = np.linalg.norm(q[..., :2] / q[..., 2:] - px[second], axis=-1)              # (P, 4)
+    nearest = np.argsort(np.linalg.norm(obj[second] - obj[first].mean(axis=1)[:, None], axis=-1), axis=1)[:, :2]
+    x, y = px[second][..., 0], px[second][..., 1]
+    size = np.sqrt(np.abs(0.5 * np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1)))
+    agree = np.take_along_axis(miss, nearest, axis=1).mean(axis=1) < AGREE * size
+    return layout_verdict(first, second, agree, len(tags))

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..board import BoardSpec
 from . import corner_refine
-from .markers import Markers, why_none
+from .markers import Markers, homographies, layout_verdict, why_none, wrong_layout_reason
 
 MAX_SHIFT = 1.0   # px from the markers' prediction
 
@@ -43,13 +43,12 @@ def detect(gray: np.ndarray, board: BoardSpec, markers: Markers):
     if len(mine_ids) == 0:
         return None, None, "board not found: " + why_none(gray, dictionary, 1, board.first_marker, board.n_markers,
                                                           markers)
-    agree, disagree = layout_check(board, mine, mine_ids - board.first_marker)
-    if np.sum(disagree > agree) > np.sum(agree > disagree):
-        layout = " in the legacy layout" if board.legacy else ""
-        return None, None, (f"board not found: its {len(mine_ids)} markers are not where a {board.cols} × {board.rows} "
-                            f"ChArUco board{layout} puts them; check the board's size (squares across × down) and "
-                            "whether it is printed in OpenCV's legacy layout")
-    mine, mine_ids = mine[agree >= disagree], mine_ids[agree >= disagree]   # a misread marker goes alone
+    keep, wrong = layout_check(board, mine, mine_ids - board.first_marker)
+    if wrong:
+        legacy = " in OpenCV's legacy layout" if board.legacy else ""
+        return None, None, (wrong_layout_reason(f"{len(mine_ids)} markers", f"{board.cols} × {board.rows} ChArUco board{legacy}",
+                                                "squares") + " and whether it is printed in OpenCV's legacy layout")
+    mine, mine_ids = mine[keep], mine_ids[keep]   # a misread marker goes alone
     detector = cv2.aruco.CharucoDetector(board.cv_charuco(), _NAMING)
     cv_pts, ids, _, _ = detector.detectBoard(gray, markerCorners=list(mine.reshape(-1, 1, 4, 2)),
                                         markerIds=mine_ids.reshape(-1, 1).astype(np.int32))
@@ -137,10 +136,10 @@ def predict(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.ndarray
     return total[ids] / n[:, None], jsum[ids] / n[:, None, None], known
 
 
-def layout_check(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(agree (K,), disagree (K,)): for each decoded marker, at how many of the corners it
-    shares with another decoded marker (the two diagonal to a corner) the two place the
-    corner within ``AGREE`` of a square of each other, and at how many they do not.
+def layout_check(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.ndarray) -> tuple[np.ndarray, bool]:
+    """(keep (K,), wrong layout) of decoded markers (``markers.layout_verdict``), each pair
+    the two markers diagonal to one corner: they agree where they place it within ``AGREE``
+    of a square of each other.
 
     A marker's homography holds at its own corners under any lens, so two markers of the
     board place their shared corner alike; a misread marker, or a board of another size or
@@ -150,10 +149,8 @@ def layout_check(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.nd
     corner, slot, p, jac = corner[order], slot[order], p[order], jac[order]
     first = np.flatnonzero(corner[1:] == corner[:-1])          # two markers name this corner
     square = board.square_size * np.linalg.svd(0.5 * (jac[first] + jac[first + 1]), compute_uv=False)[:, -1]
-    ok = np.linalg.norm(p[first] - p[first + 1], axis=1) < AGREE * square
-    k = len(marker_ids)
-    count = lambda m: np.bincount(slot[first][m], minlength=k) + np.bincount(slot[first + 1][m], minlength=k)  # noqa: E731
-    return count(ok), count(~ok)
+    agree = np.linalg.norm(p[first] - p[first + 1], axis=1) < AGREE * square
+    return layout_verdict(slot[first], slot[first + 1], agree, len(marker_ids))
 
 
 def _per_marker(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.ndarray):
@@ -172,20 +169,6 @@ def _per_marker(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.nda
     p = q[:, :2] / q[:, 2:]
     jac = (h[:, :2, :2] - p[:, :, None] * h[:, 2:, :2]) / q[:, 2:, None]   # the homography's Jacobian there
     return corner, slot[marker], p, jac
-
-
-def homographies(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """(K, 3, 3) homographies of four point pairs each, src and dst (K, 4, 2): batched DLT."""
-    k = len(src)
-    a = np.zeros((k, 8, 8))
-    x, y, u, v = src[..., 0], src[..., 1], dst[..., 0], dst[..., 1]
-    a[:, 0::2, 0], a[:, 0::2, 1], a[:, 0::2, 2] = x, y, 1.0
-    a[:, 1::2, 3], a[:, 1::2, 4], a[:, 1::2, 5] = x, y, 1.0
-    a[:, 0::2, 6], a[:, 0::2, 7] = -u * x, -u * y
-    a[:, 1::2, 6], a[:, 1::2, 7] = -v * x, -v * y
-    b = np.stack([u, v], axis=-1).reshape(k, 8)
-    h = np.linalg.solve(a, b[..., None])[..., 0] if k else np.zeros((0, 8))
-    return np.concatenate([h, np.ones((k, 1))], axis=1).reshape(k, 3, 3)
 
 
 def half_window(board: BoardSpec, jac: np.ndarray) -> np.ndarray:

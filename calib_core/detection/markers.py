@@ -6,7 +6,9 @@ their own id range from the same detection (``Markers.of``). When a board's
 markers are not found, the image is searched for what it does show: markers
 of another common dictionary (a wrong ``--board``), or the board's own
 markers read mirrored (a board seen from behind through the paper, or printed
-mirrored): the reason says so.
+mirrored): the reason says so. A board's decoded markers are checked against
+its layout (``layout_verdict``): markers read on a board of another size sit
+where that board has other ids.
 """
 from __future__ import annotations
 
@@ -99,3 +101,38 @@ def _smallest(dictionary: str, ids: np.ndarray) -> str:
 def _ids(ids: np.ndarray) -> str:
     u = np.unique(ids)
     return f"{u.min()}-{u.max()}" if len(u) > 1 else str(u[0])
+
+
+# Markers checked against a board's layout: where more than this share of the checked pairs
+# of decoded markers disagree, the markers are not where the board puts them (a board of
+# another size); fewer are misread markers, each dropped alone.
+WRONG_LAYOUT = 0.25
+
+
+def layout_verdict(first: np.ndarray, second: np.ndarray, agree: np.ndarray, n: int) -> tuple[np.ndarray, bool]:
+    """(keep (n,) bool, wrong layout) from pairs of decoded markers (slots ``first``, ``second``
+    (P,) in 0..n-1) checked against each other (``agree`` (P,) bool): a marker that disagrees
+    with more of its pairs than it agrees with is dropped; a marker in no pair is kept."""
+    def count(m: np.ndarray) -> np.ndarray:
+        return np.bincount(first[m], minlength=n) + np.bincount(second[m], minlength=n)
+    yes, no = count(agree), count(~agree)
+    return yes >= no, bool(np.sum(~agree) > WRONG_LAYOUT * len(agree))
+
+
+def wrong_layout_reason(count: str, board: str, unit: str) -> str:
+    """Why a board's markers (``count``: "17 markers") gave no view when they do not fit its layout, in words."""
+    return f"board not found: its {count} are not where a {board} puts them; check the board's size ({unit} across × down)"
+
+
+def homographies(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """(K, 3, 3) homographies of four point pairs each, src and dst (K, 4, 2): batched DLT."""
+    k = len(src)
+    a = np.zeros((k, 8, 8))
+    x, y, u, v = src[..., 0], src[..., 1], dst[..., 0], dst[..., 1]
+    a[:, 0::2, 0], a[:, 0::2, 1], a[:, 0::2, 2] = x, y, 1.0
+    a[:, 1::2, 3], a[:, 1::2, 4], a[:, 1::2, 5] = x, y, 1.0
+    a[:, 0::2, 6], a[:, 0::2, 7] = -u * x, -u * y
+    a[:, 1::2, 6], a[:, 1::2, 7] = -v * x, -v * y
+    b = np.stack([u, v], axis=-1).reshape(k, 8)
+    h = np.linalg.solve(a, b[..., None])[..., 0] if k else np.zeros((0, 8))
+    return np.concatenate([h, np.ones((k, 1))], axis=1).reshape(k, 3, 3)

@@ -73,3 +73,22 @@ def test_a_rendered_aprilgrid_is_found_with_kalibrs_ids(kind):
         assert e.max() < 0.5 and np.median(e) < 0.05   # a wrong id would be a whole tag (~40 px) off
         found += len(res.ids)
     assert found >= 0.7 * 3 * spec.n_corners
+
+
+def test_a_grid_of_another_width_is_named_as_such():
+    """Tags read on a grid of another width sit where that grid has other ids: no corner is
+    named (it would be a wrong object point), and the reason says what to check. A grid with
+    fewer rows of the same width is the same grid's first rows: its ids are right."""
+    spec = BoardSpec.parse("aprilgrid:6x6:40mm:0.3")
+    pts = spec.object_points(np.arange(spec.n_corners))
+    r = Rotation.from_rotvec(np.radians([10, -15, 5])) * Rotation.from_rotvec([np.pi, 0, 0])
+    t = np.array([0.0, 0.0, 300.0]) - r.apply(pts.mean(axis=0))
+    img = render_target.render_boards("radial", [(spec, np.concatenate([r.as_rotvec(), t]))])
+    assert detect_gray(img, spec).n_corners == spec.n_corners
+    for size in ("5x6", "7x7", "4x9"):
+        res = detect_gray(img, BoardSpec.parse(f"aprilgrid:{size}:40mm:0.3"))
+        assert res.status == "rejected" and "not where a" in res.reason and "tags across" in res.reason
+    first_rows = detect_gray(img, BoardSpec.parse("aprilgrid:6x5:40mm:0.3"))
+    assert first_rows.status == "used" and first_rows.ids is not None and first_rows.points is not None
+    truth = synth.true_project("radial", r.apply(pts) + t)
+    assert np.linalg.norm(first_rows.points - truth[first_rows.ids], axis=1).max() < 0.5

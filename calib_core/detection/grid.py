@@ -20,7 +20,9 @@ itself can tell:
   changes colour between its fifth and its middle. Such a grid is expanded to the board's own lattice (the
   skipped corners are interpolated only to place it, and are not returned);
   gaps that read as none of these (a grid grown into a grazing
-  horizon) cut the grid, and its largest clean block is kept.
+  horizon), or whose cells change colour three times or more along their middle
+  (four squares or more, which quarter points can read as one), cut the grid,
+  and its largest clean block is kept.
 
 What stays unknown for a partial plain chessboard is *where* on the board the
 patch lies: it is placed at the board's top-left (offset 0 or 1 for parity).
@@ -115,7 +117,21 @@ def gap_strides(grid: np.ndarray, gray: np.ndarray) -> tuple[np.ndarray, np.ndar
                    np.minimum(change((0.5, 0.2), (0.5, 0.5), 1), change((0.5, 0.8), (0.5, 0.5), 1)))
     along = classes(change((0.25, 0.5), (0.75, 0.5), 0),
                     np.minimum(change((0.2, 0.5), (0.5, 0.5), 0), change((0.8, 0.5), (0.5, 0.5), 0)))
+    # A cell of more squares can read as one of these (six squares: its quarter points on
+    # squares 1 and 4, one colour): counted densely along its middle, it changes colour
+    # three times or more, and is cut like an unreadable one.
+    down[_colour_changes(gray, grid, 1, 0.5 * (lo + hi)) >= 3] = 0
+    along[_colour_changes(gray, grid, 0, 0.5 * (lo + hi)) >= 3] = 0
     return down, along
+
+
+def _colour_changes(gray: np.ndarray, grid: np.ndarray, axis: int, middle: float) -> np.ndarray:
+    """The median over each row gap (axis 1) or column gap (axis 0) of grid (h, w, 2) of the
+    times its cells' grey level crosses ``middle`` at eight points along their middle."""
+    dense = [(k + 0.5) / 8 for k in range(8)]
+    st = [(0.5, f) for f in dense] if axis == 1 else [(f, 0.5) for f in dense]
+    bright = _samples(gray, grid, st) > middle                       # (8, h-1, w-1)
+    return _median(np.sum(bright[1:] != bright[:-1], axis=0).astype(np.float64), axis)
 
 
 def _median(a: np.ndarray, axis: int) -> np.ndarray:

@@ -190,6 +190,13 @@ def test_grids_that_skip_or_shear_board_lines_are_read_as_such():
     ids, _ = place_grid(three, 6, 5, img)
     assert sorted((ids // 6).tolist()) == [0] * 6 + [1] * 6 + [4] * 6
     assert place_grid(full[[0, 1, 4]][:, [0, 3]], 4, 4, img) is None   # 5 rows once expanded: not this board
+    # Four or five squares in one gap (a steep view's far end, which LARGER can step over):
+    # read at quarter points as one square, the columns beyond would take wrong ids; they
+    # are cut off instead, like unreadable gaps.
+    assert gap_strides(full[:, [0, 1, 5]], img)[1].tolist() == [1, 0]     # a gap of four squares
+    assert gap_strides(full[:, [0, 5]], img)[1].tolist() == [0]           # five
+    ids, _ = place_grid(full[:, [0, 1, 5]], 6, 5, img)
+    assert len(ids) == 10 and set((ids % 6).tolist()) <= {0, 1}
     sheared = full[:3, :3].copy()
     sheared[1:] = full[1:3, 1:4]                       # rows shifted by one column: a diagonal axis
     assert lattice_score(sheared, img) < 0.8

@@ -28,8 +28,8 @@ MAX_SHIFT = 1.0   # px from the markers' prediction
 # interpolation lies nearer another marker than its own (``checkMarkers``): every corner
 # beside a marker too small or steep to decode was lost, and steep views lost every corner.
 # Here each corner is placed and checked afresh from any one of its markers, and the markers'
-# layout is checked marker by marker (``layout_check``) (docs/detection.md, "ChArUco corners
-# beside one marker").
+# layout is checked pair by pair (``layout_check``) (docs/detection.md, "ChArUco corners
+# beside one marker, and boards checked against their layout").
 _NAMING = cv2.aruco.CharucoParameters()
 _NAMING.minMarkers = 1
 _NAMING.checkMarkers = False

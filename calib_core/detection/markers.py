@@ -104,8 +104,8 @@ def _ids(ids: np.ndarray) -> str:
 
 
 # Markers checked against a board's layout: where more than this share of the checked pairs
-# of decoded markers disagree, the markers are not where the board puts them (a board of
-# another size); fewer are misread markers, each dropped alone.
+# of decoded markers disagree (and more than one), the markers are not where the board puts
+# them (a board of another size); fewer are misread markers, each dropped alone.
 WRONG_LAYOUT = 0.25
 
 
@@ -116,7 +116,7 @@ def layout_verdict(first: np.ndarray, second: np.ndarray, agree: np.ndarray, n: 
     def count(m: np.ndarray) -> np.ndarray:
         return np.bincount(first[m], minlength=n) + np.bincount(second[m], minlength=n)
     yes, no = count(agree), count(~agree)
-    return yes >= no, bool(np.sum(~agree) > WRONG_LAYOUT * len(agree))
+    return yes >= no, bool(np.sum(~agree) > max(1, WRONG_LAYOUT * len(agree)))
 
 
 def wrong_layout_reason(count: str, board: str, unit: str) -> str:

@@ -43,7 +43,8 @@ def detect(gray: np.ndarray, board: BoardSpec, markers: Markers):
     if len(mine_ids) == 0:
         return None, None, "board not found: " + why_none(gray, dictionary, 1, board.first_marker, board.n_markers,
                                                           markers)
-    keep, wrong = layout_check(board, mine, mine_ids - board.first_marker)
+    through = _per_marker(board, mine, mine_ids - board.first_marker)
+    keep, wrong = layout_check(board, through, len(mine_ids))
     if wrong:
         legacy = " in OpenCV's legacy layout" if board.legacy else ""
         return None, None, (wrong_layout_reason(f"{len(mine_ids)} markers", f"{board.cols} × {board.rows} ChArUco board{legacy}",
@@ -55,7 +56,7 @@ def detect(gray: np.ndarray, board: BoardSpec, markers: Markers):
     if ids is None or len(ids) == 0:
         return None, None, f"too few corners (0 found from {len(mine_ids)} markers)"
     ids = ids.reshape(-1).astype(np.int64)
-    predicted, jac, known = predict(board, mine, mine_ids - board.first_marker, ids)
+    predicted, jac, known = predict(board, [a[keep[through[1]]] for a in through], ids)
     ids, jac = ids[known], jac[known]
     half = half_window(board, jac)
     pts = np.full((len(ids), 2), np.nan)
@@ -121,12 +122,11 @@ def _diagonal_markers(board: BoardSpec) -> tuple[np.ndarray, np.ndarray]:
     return corner, marker
 
 
-def predict(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.ndarray,
-            ids: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pixels (N, 2) of corners ``ids`` through the homographies of the detected markers
-    diagonal to them (``marker_ids`` counted from the board's first), the map's Jacobian
-    there (N, 2, 2: px per board unit), and which (N,) had a marker."""
-    corner, _, p, jac = _per_marker(board, marker_corners, marker_ids)
+def predict(board: BoardSpec, through: list[np.ndarray], ids: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pixels (N, 2) of corners ``ids``, the mean of their places through the homographies of
+    the detected markers diagonal to them (``through``: ``_per_marker``'s rows), the map's
+    Jacobian there (N, 2, 2: px per board unit), and which (N,) had a marker."""
+    corner, _, p, jac = through
     total, count, jsum = np.zeros((board.n_corners, 2)), np.zeros(board.n_corners), np.zeros((board.n_corners, 2, 2))
     np.add.at(total, corner, p)
     np.add.at(count, corner, 1.0)
@@ -136,26 +136,25 @@ def predict(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.ndarray
     return total[ids] / n[:, None], jsum[ids] / n[:, None, None], known
 
 
-def layout_check(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.ndarray) -> tuple[np.ndarray, bool]:
-    """(keep (K,), wrong layout) of decoded markers (``markers.layout_verdict``), each pair
-    the two markers diagonal to one corner: they agree where they place it within ``AGREE``
-    of a square of each other.
+def layout_check(board: BoardSpec, through: list[np.ndarray], k: int) -> tuple[np.ndarray, bool]:
+    """(keep (K,), wrong layout) of ``k`` decoded markers (``markers.layout_verdict``; ``through``:
+    ``_per_marker``'s rows), each pair the two markers diagonal to one corner: they agree where
+    they place it within ``AGREE`` of a square of each other.
 
     A marker's homography holds at its own corners under any lens, so two markers of the
     board place their shared corner alike; a misread marker, or a board of another size or
     layout, puts the two a square or more apart."""
-    corner, slot, p, jac = _per_marker(board, marker_corners, marker_ids)
-    order = np.argsort(corner, kind="stable")
-    corner, slot, p, jac = corner[order], slot[order], p[order], jac[order]
+    order = np.argsort(through[0], kind="stable")
+    corner, slot, p, jac = (a[order] for a in through)
     first = np.flatnonzero(corner[1:] == corner[:-1])          # two markers name this corner
     square = board.square_size * np.linalg.svd(0.5 * (jac[first] + jac[first + 1]), compute_uv=False)[:, -1]
     agree = np.linalg.norm(p[first] - p[first + 1], axis=1) < AGREE * square
-    return layout_verdict(slot[first], slot[first + 1], agree, len(marker_ids))
+    return layout_verdict(slot[first], slot[first + 1], agree, k)
 
 
-def _per_marker(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.ndarray):
-    """(corner id, marker slot in ``marker_ids``, pixel (P, 2), Jacobian (P, 2, 2)) of each
-    corner through the homography of each detected marker diagonal to it."""
+def _per_marker(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.ndarray) -> list[np.ndarray]:
+    """[corner id (P,), marker slot in ``marker_ids`` (P,), pixel (P, 2), Jacobian (P, 2, 2)] of
+    each corner through the homography of each detected marker diagonal to it."""
     cv_board = board.cv_charuco()
     obj = np.asarray(cv_board.getObjPoints(), np.float64)[:, :, :2]
     corner, marker = _diagonal_markers(board)
@@ -168,7 +167,7 @@ def _per_marker(board: BoardSpec, marker_corners: np.ndarray, marker_ids: np.nda
     q = np.einsum("kij,kj->ki", h, np.column_stack([target, np.ones(len(target))]))
     p = q[:, :2] / q[:, 2:]
     jac = (h[:, :2, :2] - p[:, :, None] * h[:, 2:, :2]) / q[:, 2:, None]   # the homography's Jacobian there
-    return corner, slot[marker], p, jac
+    return [corner, slot[marker], p, jac]
 
 
 def half_window(board: BoardSpec, jac: np.ndarray) -> np.ndarray:

@@ -138,7 +138,7 @@ def _rows(results: list[dict], key: str) -> list[tuple]:
 
 def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks boards", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--trials", type=int, default=120)
+    ap.add_argument("--trials", type=int, default=150, help="the table in docs/detection.md is of 150")
     ap.add_argument("--first", type=int, default=0, help="the first trial's seed")
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     a = ap.parse_args(argv)

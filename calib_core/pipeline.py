@@ -50,9 +50,11 @@ def usable_views(obs: Observations) -> tuple[Observations, list[dict[str, str]]]
         else:
             keep.append(v)
     if len(keep) < MIN_VIEWS:
+        why = "".join(f"; {d['name']!r}: {d['reason']}" for d in dropped[:3])
+        more = f" (and {len(dropped) - 3} more views)" if len(dropped) > 3 else ""
         raise DataError(
-            f"only {len(keep)} usable view(s); a calibration needs at least {MIN_VIEWS} views of the board "
-            "at different angles"
+            f"only {len(keep)} usable view(s) of {len(obs.views)}; a calibration needs at least {MIN_VIEWS} views "
+            f"of the board at different angles{why}{more}"
         )
     return Observations(obs.image_size, keep, obs.board, dict(obs.extra)), dropped
 

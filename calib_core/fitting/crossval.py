@@ -104,24 +104,23 @@ def linearised_view_errors(model: CameraModel, poses: np.ndarray, data: Data, sc
         span = slice(bounds[v], bounds[v + 1])
         a = by_view[span]
         at = a.T.tocsr()
-        b = pose_block[span, 6 * v : 6 * v + 6]
-        nvv = b.T @ b
-        nmv = at @ b
-        coupling = nmv @ np.linalg.solve(nvv, nmv.T)
+        m = pose_basis(pose_block[span, 6 * v : 6 * v + 6])
+        atm = at @ m
+        coupling = atm @ atm.T
         s -= coupling
         held_part = None  # C_v, T_v and δc of the view
         if held_block is not None and held_moves is not None:
             c = held_block[span]
-            t = at @ c - nmv @ np.linalg.solve(nvv, b.T @ c)
+            t = at @ c - atm @ (m.T @ c)
             cross = cross + t
             held_part = (c, t, held_moves[v])
-        parts.append((span, a, at, b, nvv, gram(a) - coupling, held_part))
+        parts.append((span, a, at, m, gram(a) - coupling, held_part))
     errors = np.zeros(data.n_views)
     steps = np.zeros((data.n_views, n_model))
     ridge = 1e-12 * np.trace(s) / max(n_model, 1) * np.eye(n_model)
     free_idx = np.flatnonzero(free_parameters(model))
     refitted = 0
-    for v, (span, a, at, b, nvv, share, held_part) in enumerate(parts):
+    for v, (span, a, at, m, share, held_part) in enumerate(parts):
         rv = r_view[span]
         rhs = at @ rv
         held_move = None if held_part is None else held_part[2]
@@ -132,11 +131,11 @@ def linearised_view_errors(model: CameraModel, poses: np.ndarray, data: Data, sc
             e = rv + a @ steps[v]
             if held_part is not None:
                 e += held_part[0] @ held_move
-            e -= b @ np.linalg.solve(nvv, b.T @ e)
+            e -= m @ (m.T @ e)
             errors[v] = float(np.sum(e[weight[span]] ** 2))
             moved = residuals(_moved(model, free_idx, steps[v], held_move), poses[[v]],
                               select_views(data, np.array([v]))).ravel()
-            moved -= b @ np.linalg.solve(nvv, b.T @ moved)
+            moved -= m @ (m.T @ moved)
             predicted = float(np.sum(moved[weight[span]] ** 2))
             linear = abs(predicted - errors[v]) <= LINEAR_AGREEMENT * max(errors[v], predicted)
         except np.linalg.LinAlgError:  # undetermined to first order without the view
@@ -204,6 +203,17 @@ def _refit_without(model: CameraModel, poses: np.ndarray, data: Data, v: int, fr
     alone = levenberg_marquardt(fit.model, poses[[v]], select_views(data, np.array([v])),
                                 SolveSettings(100, fix_model=True))
     return float(np.sum(alone.residuals[scored] ** 2)), fit.model.params()[free_idx] - model.params()[free_idx]
+
+
+def pose_basis(p: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
+    """P (PᵀWP)^-½ (rows, ≤ 6) of a view's pose columns P (W: the rows' weights,
+    default 1), the directions PᵀWP cannot tell apart dropped (a view left with
+    too few corners, or corners on one line, to pose): M Mᵀ W projects onto the
+    pose's columns, what refitting the view's pose takes up."""
+    pwp = p.T @ p if w is None else p.T @ (w[:, None] * p)
+    s, u = np.linalg.eigh(pwp)
+    keep = s > 1e-12 * max(float(s.max(initial=0.0)), 1e-300)
+    return p @ (u[:, keep] / np.sqrt(s[keep]))
 
 
 def _spd_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -21,6 +21,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
+from .crossval import pose_basis
 from .gram import gram
 from .smoothing import CVCurve, gauge_null_space, walk_lambdas
 
@@ -73,7 +74,7 @@ def posed_cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, g
         interleaved = (2 * points[:, None] + [0, 1]).ravel()  # the group's rows of the Jacobian
         for v in np.unique(local):
             rows = np.flatnonzero(local == v)
-            m = _whitened(pose[interleaved[rows]], w[rows])
+            m = pose_basis(pose[interleaved[rows]], w[rows])
             xt_w_m = x[rows].T @ (w[rows, None] * m)
             normal[g] -= xt_w_m @ xt_w_m.T
             rhs[g] -= xt_w_m @ (m.T @ (w[rows] * d[rows]))
@@ -93,19 +94,6 @@ def posed_cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, g
         return sse, np.full(len(lams), np.nan)
 
     return walk_lambdas(evaluate, lambdas, counts, refine=True), no_field
-
-
-def _whitened(p: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """P (PᵀWP)^-½ (rows, 6), directions PᵀWP cannot tell apart (a view of too few
-    corners to pose) dropped: M Mᵀ W projects onto the pose's columns."""
-    s, u = np.linalg.eigh(p.T @ (w[:, None] * p))
-    keep = s > 1e-12 * max(float(s.max(initial=0.0)), 1e-300)
-    return p @ (u[:, keep] / np.sqrt(s[keep]))
-
-
-def _projected(e: np.ndarray, m: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """e less what the view's pose takes up (the W-weighted least-squares pose step)."""
-    return e - m @ (m.T @ (w * e))
 
 
 def _spd_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -438,3 +438,21 @@ def test_only_the_models_the_choice_turns_on_are_refitted():
     refitted = choice.how.split("refitted without the view")[0]
     assert cal.settings["chosen"] == "zhang"
     assert "OpenCV 5-coefficient model" in refitted and "Kannala-Brandt model" not in refitted
+
+
+def test_a_view_left_without_corners_is_scored_empty_and_changes_no_other_view():
+    """A field's fit can exclude every corner of a view (all beyond what its base maps): that view's
+    pose is then undetermined, and leaving each view out still scores the others as before."""
+    from calib_core.fitting.crossval import linearised_view_errors
+    from calib_core.fitting.solve import Data
+    from calib_core.pipeline import to_data
+
+    train = synth.generate("radial", 0.3, 0, 6).train
+    data, _, _ = to_data(train)
+    cal = calibrate(train, "zhang", outlier_sigma=0)
+    poses = np.array([np.concatenate([v.rvec, v.tvec]) for v in cal.views])
+    alone = linearised_view_errors(cal.model, poses, data).errors
+    with_empty = Data(data.object_points, data.image_points, data.view_index, data.n_views + 1)
+    errors = linearised_view_errors(cal.model, np.vstack([poses, poses[:1]]), with_empty).errors
+    assert errors[-1] == 0.0
+    assert np.allclose(errors[:-1], alone, rtol=1e-8, atol=0)

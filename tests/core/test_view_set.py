@@ -93,3 +93,17 @@ def test_a_good_set_still_calibrates(kind):
     check_views(obs)
     cal = calibrate(obs, "bspline", **QUICK)
     assert len(cal.views) == len(obs.views)
+
+
+def test_too_few_usable_views_names_each_dropped_view_and_why():
+    obs = synth.generate("radial", 0.3, 0).train
+    ys, counts = np.unique(obs.views[0].object_points[:, 1], return_counts=True)
+    row = obs.views[0].object_points[:, 1] == ys[np.argmax(counts)]  # the longest row the view shows
+    views = [View("one_row", obs.views[0].object_points[row], obs.views[0].image_points[row]),
+             View("four_corners", obs.views[1].object_points[:4], obs.views[1].image_points[:4]), obs.views[2]]
+    with pytest.raises(DataError) as err:
+        calibrate(Observations(obs.image_size, views, obs.board), "zhang")
+    message = str(err.value)
+    for words in ("only 1 usable view(s) of 3", "'one_row': its corners all lie on one line",
+                  "'four_corners': too few corners (4, need at least 6)"):
+        assert words in message, message

@@ -84,16 +84,21 @@ class SolverReport:
 
 @dataclass(frozen=True)
 class ExcludedPoints:
-    """Corners left out of the fit: robust outliers, and those the model cannot represent (and why)."""
+    """Corners left out of the fit: robust outliers, those the model cannot represent (and
+    why), and those set aside before it as misplaced (their board neighbours contradict
+    them: ``fitting.misplaced``). Each is among its view's ``outliers``."""
 
     outliers: int
     outside_model: int
     outside_model_reason: str = ""  # written when some are outside the model
+    misplaced: int = 0
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"outliers": self.outliers, "outside_model": self.outside_model}
         if self.outside_model:
             out["outside_model_reason"] = self.outside_model_reason
+        if self.misplaced:  # written when some were set aside (files from before it read back the same)
+            out["misplaced"] = self.misplaced
         return out
 
     @classmethod
@@ -102,7 +107,8 @@ class ExcludedPoints:
         doc = json_object(raw, w)
         return cls(whole(required(doc, "outliers", w), f"{w}.outliers"),
                    whole(required(doc, "outside_model", w), f"{w}.outside_model"),
-                   text(doc.get("outside_model_reason", ""), f"{w}.outside_model_reason"))
+                   text(doc.get("outside_model_reason", ""), f"{w}.outside_model_reason"),
+                   whole(doc.get("misplaced", 0), f"{w}.misplaced"))
 
 
 @dataclass(frozen=True)

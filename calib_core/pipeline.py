@@ -1,7 +1,8 @@
 """calibrate(observations, method, **settings) → Calibration: the pipeline around every method.
 
-The same steps for every method around its fit: choose the usable views, fit,
-reject outliers (robust, per residual component) and refit, then measure.
+The same steps for every method around its fit: set aside misplaced corners (far
+beyond the image, or contradicted by their board neighbours), choose the usable views, fit, reject outliers (robust, per
+residual component) and refit, then measure.
 """
 from __future__ import annotations
 
@@ -17,11 +18,12 @@ from .calibration import Calibration, ViewResult
 from .errors import DataError, SettingsError
 from .fit_report import Diagnostics, ExcludedPoints, FitMetrics, SolverReport
 from .fitting import metrics, view_set
+from .fitting.misplaced import misplaced_corners
 from .fitting.solve import Data, SolveSettings, levenberg_marquardt
 from .methods import METHODS
 from .methods.auto import AutoSettings
 from .methods.common import Progress, no_progress, settings_from
-from .observations import Observations
+from .observations import Observations, View
 from .provenance import provenance
 
 MIN_VIEWS = 3
@@ -37,6 +39,25 @@ def to_data(obs: Observations) -> tuple[Data, list[str], np.ndarray]:
     vi = np.concatenate([np.full(len(v), k) for k, v in enumerate(obs.views)])
     local = np.concatenate([np.arange(len(v)) for v in obs.views])
     return Data(obj, img, vi, len(obs.views)), names, local
+
+
+def without_misplaced(obs: Observations) -> tuple[Observations, dict[str, np.ndarray]]:
+    """The observations without misplaced corners (far beyond the image, or contradicted
+    by their board neighbours: ``fitting.misplaced``), and those corners' indices in each
+    view they left."""
+    data, _, _ = to_data(obs)
+    flags = misplaced_corners(data.object_points, data.image_points, data.view_index, obs.image_size)
+    if not flags.any():
+        return obs, {}
+    views, removed = [], {}
+    for k, v in enumerate(obs.views):
+        off = flags[data.view_index == k]
+        if off.any():
+            removed[v.name] = np.flatnonzero(off)
+            v = View(v.name, v.object_points[~off], v.image_points[~off], None if v.ids is None else v.ids[~off],
+                     v.frame)
+        views.append(v)
+    return Observations(obs.image_size, views, obs.board, dict(obs.extra)), removed
 
 
 def usable_views(obs: Observations) -> tuple[Observations, list[dict[str, str]]]:
@@ -113,7 +134,14 @@ def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Cal
         s.image_circle = observations.image_circle  # where the lens forms an image: the models must map it all
     progress = progress or no_progress
     t0 = time.perf_counter()
-    obs, dropped = usable_views(observations)
+    # Gross errors first: one corner thrown far off spoils the first camera every method
+    # starts from, and the outlier rounds below then judge a wrong camera's residuals.
+    cleaned, misplaced = without_misplaced(observations) if outlier_sigma > 0 else (observations, {})
+    obs, dropped = usable_views(cleaned)
+    for d in dropped:
+        if d["name"] in misplaced:
+            d["reason"] += (f" once {len(misplaced[d['name']])} of its corners were set aside as misplaced (beyond "
+                            "the image, or not where their board neighbours put them: wrong ids?)")
     view_set.check_views(obs)  # duplicates, all face-on: fail before the solver, saying what to shoot
     data, names, local = to_data(obs)
 
@@ -144,9 +172,11 @@ def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Cal
     for k, name in enumerate(names):
         m = data.view_index == k
         r = full[m & inlier]
+        set_aside = misplaced.get(name, np.zeros(0, dtype=int))
+        original = np.delete(np.arange(int(m.sum()) + len(set_aside)), set_aside)  # the view's own indices
         views.append(ViewResult(
             name, res.poses[k, :3].copy(), res.poses[k, 3:].copy(), metrics.rmse(r), metrics.rmse_axis(r),
-            int(len(r)), [int(i) for i in local[m & ~inlier]],
+            int(len(r)), sorted(int(i) for i in np.concatenate([original[local[m & ~inlier]], set_aside])),
         ))
     fit_metrics = FitMetrics.of(full[inlier], data.image_points[inlier], obs.image_size)
     solver = SolverReport(res.iterations, res.status, res.message, res.cost, res.model.n_params + 6 * data.n_views,
@@ -154,7 +184,8 @@ def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Cal
     diagnostics = Diagnostics(
         extra=dict(fit.diagnostics), restart=fit.restart, model_choice=fit.model_choice, solver=solver,
         coverage_hull=coverage_hull(data.image_points[inlier]),
-        excluded_points=ExcludedPoints(int(outlier.sum()), int(fit.excluded.sum()), fit.excluded_reason))
+        excluded_points=ExcludedPoints(int(outlier.sum()), int(fit.excluded.sum()), fit.excluded_reason,
+                                       sum(len(misplaced.get(name, ())) for name in names)))
     settings_out = {"method": method, "outlier_sigma": outlier_sigma, **fit.settings}
     progress("done", 1.0)
     return Calibration(res.model, obs.image_size, method, views, dropped, fit_metrics, settings_out, diagnostics,

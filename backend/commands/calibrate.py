@@ -232,6 +232,9 @@ def print_summary(cal: Calibration) -> None:
     rows.append(("overall", m.n_points, m.rmse, m.rmse_axis, sum(len(v.outliers) for v in cal.views)))
     table(["view", "points", "rmse [px]", "rmse_axis [px]", "outliers"], rows)
     print(f"\ncentre rmse {m.rmse_center:.4f} px, edge rmse {m.rmse_edge:.4f} px")
+    if d.excluded_points is not None and d.excluded_points.misplaced:
+        print(f"{d.excluded_points.misplaced} corners set aside before the fit as misplaced (beyond the image, or not "
+              "where their board neighbours put them: wrong ids?); they are counted among the outliers")
     for dv in cal.dropped_views:
         print(f"dropped {dv['name']}: {dv['reason']}")
 

@@ -75,3 +75,19 @@ def test_calibrate_summary_and_demo_say_which_model_was_chosen(tmp_path, capsys)
     rows = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()
             if line.split() and line.split()[0] in ("radial", "fisheye", "asymmetric")}
     assert "OpenCV 5-coefficient model" in rows["radial"] and "B-spline field" in rows["asymmetric"]
+
+
+def test_the_summary_says_how_many_corners_were_set_aside_as_misplaced(tmp_path, capsys):
+    from calib_core.observations import Observations
+
+    out = tmp_path / "synth"
+    assert main(["synth", "--kind", "radial", "-o", str(out)]) == 0
+    obs = Observations.load(out / "train.json")
+    points = obs.views[0].image_points
+    points[[10, 30, 50]] = points[[30, 50, 10]]  # three corners given each other's ids
+    obs.save(tmp_path / "mislabelled.json")
+    capsys.readouterr()
+    assert main(["calibrate", str(tmp_path / "mislabelled.json"), "-o", str(tmp_path / "cal.json"),
+                 "--method", "zhang"]) == 0
+    assert "3 corners set aside before the fit as misplaced (beyond the image, or not where their board " \
+           "neighbours put them: wrong ids?)" in capsys.readouterr().out

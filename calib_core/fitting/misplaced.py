@@ -21,9 +21,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 # Share of the local square (pixels per nearest-neighbour board distance) a corner may
-# miss its neighbours' prediction by. Clean corners miss by 0.06 at most on the
-# rendered 200° fisheye's edges and the real sets (docs/method.md, "Misplaced corners");
-# a corner given its neighbour's id misses by a whole square.
+# miss its neighbours' prediction by. Clean corners beyond the noise floor missed by 0.29
+# at most (the 200° fisheye's train views; docs/method.md, "Misplaced corners"); a corner
+# given its neighbour's id misses by a whole square.
 MAX_MISS = 0.4
 NEIGHBOURHOOD = 1.6   # board distance searched, in nearest-neighbour spacings: the 3 x 3 ring
 MIN_NEIGHBOURS = 5    # a homography needs 4; fewer than 5 (a board's corner) leave nothing to check it

@@ -18,6 +18,7 @@ neighbourhood, and the predictions are made again without it.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from scipy.spatial import cKDTree
 
 # Share of the local square (pixels per nearest-neighbour board distance) a corner may
@@ -46,38 +47,37 @@ def misplaced_corners(object_points: np.ndarray, image_points: np.ndarray, view_
     margin = OUTSIDE * float(np.hypot(w, h))
     with np.errstate(invalid="ignore"):
         outside = ~np.all((image_points >= -margin) & (image_points <= np.array([w - 1, h - 1]) + margin), axis=1)
-    views = []
-    for v in np.unique(view_index):
-        idx = np.flatnonzero(view_index == v)
-        obj = object_points[idx]
-        if len(idx) > MIN_NEIGHBOURS and np.all(obj[:, 2] == 0):
-            neighbours = _Neighbours(obj[:, :2])
-            if neighbours.spacing > 0:
-                views.append((idx, neighbours))
-    first = [n.miss(image_points[idx], outside[idx]) for idx, n in views]
-    judged = np.concatenate([miss for miss, _, _ in first] + [np.zeros(0)])
-    judged = judged[np.isfinite(judged)]
-    out = outside.copy()
+    if len(object_points) <= MIN_NEIGHBOURS:
+        return outside
+    planar = np.ones(int(view_index.max()) + 1, dtype=bool)  # views of a 3-D object: judged by the image alone
+    np.logical_and.at(planar, view_index, object_points[:, 2] == 0)
+    ring = _Rings(object_points[:, :2], view_index, planar[view_index])
+    missed = ring.miss(image_points, outside)
+    judged = missed[0][np.isfinite(missed[0])]
     if not len(judged):
-        return out
-    floor = NOISE_MULTIPLE * float(np.median(judged))
-    for (idx, n), missed in zip(views, first, strict=True):
-        out[idx] = n.misplaced(image_points[idx], floor, outside[idx], missed)
-    return out
+        return outside
+    return ring.misplaced(image_points, NOISE_MULTIPLE * float(np.median(judged)), outside, missed)
 
 
-class _Neighbours:
-    """A view's corners' board neighbours (within ``NEIGHBOURHOOD`` spacings)."""
+class _Rings:
+    """Every corner's board neighbours within ``NEIGHBOURHOOD`` spacings (its view's median
+    nearest-neighbour distance) in its own view, all views at once (one tree, views set apart)."""
 
-    def __init__(self, board: np.ndarray):
-        self.board = board
-        tree = cKDTree(board)
-        nearest = tree.query(board, k=2)[0][:, 1]
-        nearest = nearest[np.isfinite(nearest) & (nearest > 0)]  # a corner given twice is no spacing
-        self.spacing = float(np.median(nearest)) if len(nearest) else 0.0
-        dist, nbr = tree.query(board, k=min(len(board), 13), distance_upper_bound=NEIGHBOURHOOD * self.spacing)
-        self.found = np.isfinite(dist[:, 1:]) & (dist[:, 1:] > 0)  # self excluded; 13: the 3 x 3 ring and some
-        self.nbr = np.where(self.found, nbr[:, 1:], 0)
+    def __init__(self, board: np.ndarray, view_index: np.ndarray, judged: np.ndarray):
+        apart = np.column_stack([board, view_index * 10.0 * (float(np.ptp(board)) + 1.0)])  # views set apart
+        k = min(len(board), 13)  # the 3 x 3 ring and some, self included
+        dist, nbr = cKDTree(apart).query(apart, k=k)
+        dist, nbr = dist[:, 1:], nbr[:, 1:]
+        nearest = np.where(dist > 0, dist, np.inf).min(axis=1)  # a corner given twice is no spacing
+        usable = np.isfinite(nearest)
+        spacing = np.zeros(int(view_index.max(initial=-1)) + 1)
+        for v in np.unique(view_index[usable]):
+            spacing[v] = np.median(nearest[usable & (view_index == v)])
+        self.judged = judged & (spacing[view_index] > 0)
+        self.board = board / np.where(spacing > 0, spacing, 1.0)[view_index, None]  # in spacings
+        self.found = (dist > 0) & (dist <= NEIGHBOURHOOD * spacing[view_index, None]) & self.judged[:, None]
+        self.nbr = np.where(self.found, nbr, 0)
+        self.found &= self.judged[self.nbr]
 
     def miss(self, pixels: np.ndarray, flagged: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(miss px, square px, neighbours used) of each corner not ``flagged``, its flagged
@@ -90,8 +90,8 @@ class _Neighbours:
         centre = np.stack([_row_median(around[..., c], use) for c in range(2)], axis=1)
         spread = np.linalg.norm(around - centre[:, None], axis=2)
         use &= ~(spread > RING_SPREAD * _row_median(spread, use)[:, None])
-        miss, square = _miss(self.board, pixels, self.nbr, use, self.spacing)
-        enough = (use.sum(axis=1) >= MIN_NEIGHBOURS) & ~flagged
+        miss, square = _miss(self.board, pixels, self.nbr, use)
+        enough = (use.sum(axis=1) >= MIN_NEIGHBOURS) & ~flagged & self.judged
         return np.where(enough, miss, np.nan), square, use
 
     def misplaced(self, pixels: np.ndarray, floor: float, outside: np.ndarray, first: tuple) -> np.ndarray:
@@ -118,34 +118,22 @@ def _row_median(a: np.ndarray, valid: np.ndarray) -> np.ndarray:
     return np.where(n > 0, 0.5 * (low + high), 0.0)
 
 
-def _miss(board: np.ndarray, pixels: np.ndarray, nbr: np.ndarray, use: np.ndarray,
-          spacing: float) -> tuple[np.ndarray, np.ndarray]:
+def _miss(board: np.ndarray, pixels: np.ndarray, nbr: np.ndarray, use: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(N,) each corner's distance (px) from its neighbours' homography prediction, and
-    (N,) the local square (px per board spacing); NaN where the neighbours fix none.
+    (N,) the local square (px per board spacing; ``board`` is in spacings); NaN where the
+    neighbours fix none.
     A homography, not an affine map: a board seen steeply shrinks its squares along the
     tilt, which an affine map over a 3 x 3 ring misreads by half a square (measured on
     the synthetic hold-out views). Board offsets are taken from the corner itself, so
     the homography's last entry is the prediction's denominator there, and is set to 1
-    (8 unknowns, normal equations solved for every corner at once)."""
-    x = (board[nbr] - board[:, None]) / spacing                      # (N, k, 2) board offsets
+    (``_ring_homographies``)."""
+    x = board[nbr] - board[:, None]                                  # (N, k, 2) board offsets, in spacings
     n_use = np.maximum(use.sum(axis=1), 1)
     centre = np.where(use[..., None], pixels[nbr], 0.0).sum(axis=1) / n_use[:, None]
     du = np.where(use[..., None], pixels[nbr] - centre[:, None], 0.0)
     scale = np.sqrt(np.sum(du**2, axis=(1, 2)) / n_use)
     u = du / np.maximum(scale, 1e-12)[:, None, None]                 # (N, k, 2) pixel offsets, unit spread
-    one, zero = use.astype(float), np.zeros(x.shape[:2])
-    xw, yw = x[..., 0] * one, x[..., 1] * one
-    # u (h31 x + h32 y + 1) = h11 x + h12 y + h13, and the same for v with h21, h22, h23.
-    rows = np.concatenate([
-        np.stack([xw, yw, one, zero, zero, zero, -u[..., 0] * xw, -u[..., 0] * yw], axis=2),
-        np.stack([zero, zero, zero, xw, yw, one, -u[..., 1] * xw, -u[..., 1] * yw], axis=2)], axis=1)
-    rhs = np.concatenate([u[..., 0], u[..., 1]], axis=1)              # unused rows are zero on both sides
-    ata = np.matmul(rows.transpose(0, 2, 1), rows)
-    atb = np.matmul(rows.transpose(0, 2, 1), rhs[..., None])
-    # A ridge keeps every system solvable; where the neighbours leave a direction free (on
-    # one line), its columns stay near 0, and the square's check below rejects the fit.
-    ata += 1e-9 * (np.trace(ata, axis1=1, axis2=2) + 1e-300)[:, None, None] * np.eye(8)
-    h = np.linalg.solve(ata, atb)[..., 0]                              # (N, 8)
+    h = _ring_homographies(x, u, use)                                # (N, 8)
     jac = np.stack([h[:, [0, 1]] - h[:, 2:3] * h[:, [6, 7]], h[:, [3, 4]] - h[:, 5:6] * h[:, [6, 7]]], axis=1)
     square = scale * np.sqrt(np.abs(np.linalg.det(jac)))                # pixels per board spacing at the corner
     predicted = centre + scale[:, None] * h[:, [2, 5]]
@@ -153,3 +141,67 @@ def _miss(board: np.ndarray, pixels: np.ndarray, nbr: np.ndarray, use: np.ndarra
     # columns of corners); its square then disagrees with the neighbours' own spread.
     good = (square > SPREAD_AGREEMENT[0] * scale) & (square < SPREAD_AGREEMENT[1] * scale)
     return np.where(good, np.linalg.norm(pixels - predicted, axis=1), np.nan), np.where(good, square, np.nan)
+
+
+@njit(cache=True, nogil=True)
+def _ring_homographies(x: np.ndarray, u: np.ndarray, use: np.ndarray) -> np.ndarray:
+    """(N, 8) each ring's homography, its last entry 1: u (h7 x + h8 y + 1) = h1 x + h2 y + h3
+    and the same for v with h4, h5, h6, least squares over the ring's ``use``d neighbours
+    (offsets ``x``, pixels ``u``). A ridge of 1e-9 of the trace keeps every system solvable;
+    where the neighbours leave a direction free (on one line) its entries stay near 0, and
+    the caller's check of the square rejects the fit. Compiled: a dozen neighbours a corner,
+    where NumPy's stacked arrays cost 40 times the arithmetic."""
+    n, k = use.shape
+    out = np.zeros((n, 8))
+    a = np.zeros((8, 8))
+    b = np.zeros(8)
+    row = np.zeros(8)
+    for i in range(n):
+        a[:] = 0.0
+        b[:] = 0.0
+        for j in range(k):
+            if not use[i, j]:
+                continue
+            for c in range(2):
+                row[:] = 0.0
+                row[3 * c], row[3 * c + 1], row[3 * c + 2] = x[i, j, 0], x[i, j, 1], 1.0
+                row[6], row[7] = -u[i, j, c] * x[i, j, 0], -u[i, j, c] * x[i, j, 1]
+                for p in range(8):
+                    b[p] += row[p] * u[i, j, c]
+                    for q in range(8):
+                        a[p, q] += row[p] * row[q]
+        ridge = 0.0
+        for p in range(8):
+            ridge += a[p, p]
+        for p in range(8):
+            a[p, p] += 1e-9 * ridge + 1e-300
+        out[i] = _solve8(a, b)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _solve8(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a⁻¹ b by Gaussian elimination with partial pivoting (a and b are overwritten)."""
+    m = len(b)
+    for c in range(m):
+        pivot = c
+        for r in range(c + 1, m):
+            if abs(a[r, c]) > abs(a[pivot, c]):
+                pivot = r
+        if pivot != c:
+            for q in range(m):
+                a[c, q], a[pivot, q] = a[pivot, q], a[c, q]
+            b[c], b[pivot] = b[pivot], b[c]
+        for r in range(c + 1, m):
+            f = a[r, c] / a[c, c]
+            for q in range(c, m):
+                a[r, q] -= f * a[c, q]
+            b[r] -= f * b[c]
+    x = np.zeros(m)
+    for r in range(m - 1, -1, -1):
+        acc = b[r]
+        for q in range(r + 1, m):
+            acc -= a[r, q] * x[q]
+        x[r] = acc / a[r, r]
+    return x
+

@@ -93,6 +93,31 @@ def test_no_clean_corner_is_set_aside_on_any_lens_or_noise():
                                              obs.image_size).any(), (kind, sigma)
 
 
+@pytest.mark.parametrize("kind", ["radial", "fisheye200"])
+def test_no_clean_corner_of_an_aprilgrid_is_set_aside(kind):
+    """Tag corners are not a square grid (a tag's side, then a gap of 0.3 of it): nothing is set aside.
+    (Rings a tag wide, tried so that tag corners are judged too, set aside clean corners of tags a few
+    pixels wide, through the radial lens: 1 at σ = 0.3 px, 3 at 2 px.)"""
+    import numpy as np
+
+    from calib_core import synth
+    from calib_core.board import BoardSpec
+    from calib_core.fitting.misplaced import misplaced_corners
+    from calib_core.observations import Observations
+    from calib_core.pipeline import to_data
+
+    board = BoardSpec.parse("aprilgrid:6x6:30mm:0.3")
+    points = board.object_points(np.arange(board.n_corners))
+    centre = np.append(points[:, :2].mean(axis=0), 0.0)
+    rng = np.random.default_rng(0)
+    poses = [synth.pose_looking_at(centre + [*rng.uniform(-40, 40, 2), 0.0], rng.uniform(150, 260),
+                                   np.radians(rng.uniform(-40, 40, 2)), rng.uniform(-0.5, 0.5)) for _ in range(8)]
+    views, _ = synth.shoot(kind, np.array(poses), points, 0.3, rng, "view_")
+    data = to_data(Observations(synth.IMAGE_SIZE, views))[0]
+    assert len(views) >= 4
+    assert not misplaced_corners(data.object_points, data.image_points, data.view_index, synth.IMAGE_SIZE).any()
+
+
 def test_keeping_every_point_keeps_misplaced_ones_too():
     clean, bad, _, _ = _mislabelled("radial", 0)
     bad.train.views[1] = clean.train.views[1]  # the swapped ids alone

@@ -1,8 +1,8 @@
 """calibrate(observations, method, **settings) → Calibration: the pipeline around every method.
 
 The same steps for every method around its fit: set aside misplaced corners (far
-beyond the image, or contradicted by their board neighbours), choose the usable views, fit, reject outliers (robust, per
-residual component) and refit, then measure.
+beyond the image, or contradicted by their board neighbours), choose the usable
+views, fit, reject outliers (robust, per residual component) and refit, then measure.
 """
 from __future__ import annotations
 
@@ -60,16 +60,23 @@ def without_misplaced(obs: Observations) -> tuple[Observations, dict[str, np.nda
     return Observations(obs.image_size, views, obs.board, dict(obs.extra)), removed
 
 
-def usable_views(obs: Observations) -> tuple[Observations, list[dict[str, str]]]:
+def usable_views(obs: Observations, set_aside: dict[str, np.ndarray] | None = None,
+                 ) -> tuple[Observations, list[dict[str, str]]]:
+    """The views a calibration can use, and each other one with the reason (``set_aside``:
+    the misplaced corners ``without_misplaced`` took from each view, named in its reason)."""
     keep, dropped = [], []
     for v in obs.views:
         if len(v) < MIN_POINTS_PER_VIEW:
-            dropped.append({"name": v.name, "reason": f"too few corners ({len(v)}, need at least {MIN_POINTS_PER_VIEW})"})
+            reason = f"too few corners ({len(v)}, need at least {MIN_POINTS_PER_VIEW})"
         elif on_one_line(v.object_points):
-            dropped.append({"name": v.name, "reason": "its corners all lie on one line of the board, "
-                                                      "which cannot fix the board's pose"})
+            reason = "its corners all lie on one line of the board, which cannot fix the board's pose"
         else:
             keep.append(v)
+            continue
+        if set_aside and v.name in set_aside:
+            reason += (f" once {len(set_aside[v.name])} of its corners were set aside as misplaced (beyond the "
+                       "image, or not where their board neighbours put them: wrong ids?)")
+        dropped.append({"name": v.name, "reason": reason})
     if len(keep) < MIN_VIEWS:
         why = "".join(f"; {d['name']!r}: {d['reason']}" for d in dropped[:3])
         more = f" (and {len(dropped) - 3} more views)" if len(dropped) > 3 else ""
@@ -137,11 +144,7 @@ def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Cal
     # Gross errors first: one corner thrown far off spoils the first camera every method
     # starts from, and the outlier rounds below then judge a wrong camera's residuals.
     cleaned, misplaced = without_misplaced(observations) if outlier_sigma > 0 else (observations, {})
-    obs, dropped = usable_views(cleaned)
-    for d in dropped:
-        if d["name"] in misplaced:
-            d["reason"] += (f" once {len(misplaced[d['name']])} of its corners were set aside as misplaced (beyond "
-                            "the image, or not where their board neighbours put them: wrong ids?)")
+    obs, dropped = usable_views(cleaned, misplaced)
     view_set.check_views(obs)  # duplicates, all face-on: fail before the solver, saying what to shoot
     data, names, local = to_data(obs)
 

@@ -123,3 +123,18 @@ def test_keeping_every_point_keeps_misplaced_ones_too():
     bad.train.views[1] = clean.train.views[1]  # the swapped ids alone
     cal = calibrate(bad.train, "zhang", outlier_sigma=0)
     assert cal.views[2].outliers == [] and cal.diagnostics.excluded_points.misplaced == 0
+
+
+def test_a_view_left_with_too_few_corners_says_they_were_set_aside():
+    import numpy as np
+
+    bad = copy.deepcopy(synthetic("radial"))
+    view = bad.train.views[0]
+    view.image_points[3:] += 9000.0  # all but three corners far beyond the image
+    cal = calibrate(bad.train, "zhang")
+    (dropped,) = cal.dropped_views
+    assert dropped["name"] == view.name
+    assert dropped["reason"] == (f"too few corners (3, need at least 6) once {len(view) - 3} of its corners were set "
+                                 "aside as misplaced (beyond the image, or not where their board neighbours put them: "
+                                 "wrong ids?)")
+    assert np.isfinite(cal.metrics.rmse) and cal.metrics.rmse < 1.0

@@ -33,6 +33,7 @@ MAX_ROUNDS = 6
 SPREAD_AGREEMENT = (0.25, 4.0)
 OUTSIDE = 0.1         # share of the image's diagonal a corner may lie beyond its frame (a lens seen to the border)
 RING_SPREAD = 4.0      # a neighbour this many times the ring's median distance from its median is left out
+SPACING_SAMPLE = 64   # corners of a view whose nearest neighbours give its spacing
 NOISE_MULTIPLE = 10.0  # times the set's median miss, which noise alone sets (about 1.2 sigma)
 
 
@@ -66,16 +67,23 @@ class _Rings:
 
     def __init__(self, board: np.ndarray, view_index: np.ndarray, judged: np.ndarray):
         apart = np.column_stack([board, view_index * 10.0 * (float(np.ptp(board)) + 1.0)])  # views set apart
-        k = min(len(board), 13)  # the 3 x 3 ring and some, self included
-        dist, nbr = cKDTree(apart).query(apart, k=k)
-        dist, nbr = dist[:, 1:], nbr[:, 1:]
-        nearest = np.where(dist > 0, dist, np.inf).min(axis=1)  # a corner given twice is no spacing
-        usable = np.isfinite(nearest)
-        spacing = np.zeros(int(view_index.max(initial=-1)) + 1)
-        for v in np.unique(view_index[usable]):
-            spacing[v] = np.median(nearest[usable & (view_index == v)])
+        tree = cKDTree(apart)
+        # Each view's spacing: the median distance to the nearest other corner, over its first
+        # SPACING_SAMPLE corners (the distance is the same all over a board; a query per corner
+        # cost 19 ms at 100 views).
+        order = np.argsort(view_index, kind="stable")
+        rank = np.empty(len(board), dtype=np.int64)
+        rank[order] = np.arange(len(board)) - np.searchsorted(view_index[order], view_index[order])
+        sample = np.flatnonzero(rank < SPACING_SAMPLE)
+        dist, _ = tree.query(apart[sample], k=3)  # the nearest other corner: the second, or the third past a twin
+        nearest = np.where(dist[:, 1] > 0, dist[:, 1], dist[:, 2])  # a corner given twice is no spacing
+        spacing = _group_medians(nearest, view_index[sample], np.isfinite(nearest) & (nearest > 0),
+                                 int(view_index.max()) + 1)
         self.judged = judged & (spacing[view_index] > 0)
         self.board = board / np.where(spacing > 0, spacing, 1.0)[view_index, None]  # in spacings
+        k = min(len(board), 13)  # the 3 x 3 ring and some, self included
+        dist, nbr = tree.query(apart, k=k, distance_upper_bound=NEIGHBOURHOOD * max(float(spacing.max()), 1e-300))
+        dist, nbr = dist[:, 1:], nbr[:, 1:]
         self.found = (dist > 0) & (dist <= NEIGHBOURHOOD * spacing[view_index, None]) & self.judged[:, None]
         self.nbr = np.where(self.found, nbr, 0)
         self.found &= self.judged[self.nbr]
@@ -107,6 +115,21 @@ class _Rings:
             rival = np.where(use & over[self.nbr], np.nan_to_num(miss)[self.nbr], 0.0).max(axis=1)
             flagged |= over & (miss >= rival)
         return flagged
+
+
+def _group_medians(values: np.ndarray, group: np.ndarray, valid: np.ndarray, n_groups: int) -> np.ndarray:
+    """(n_groups,) the median of each group's ``valid`` values (0 where none), by one sort."""
+    order = np.lexsort((values, group))
+    order = order[valid[order]]
+    g, v = group[order], values[order]
+    counts = np.bincount(g, minlength=n_groups)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    has = counts > 0
+    low = v[(starts + (counts - 1) // 2)[has]]
+    high = v[(starts + counts // 2)[has]]
+    out = np.zeros(n_groups)
+    out[has] = 0.5 * (low + high)
+    return out
 
 
 def _row_median(a: np.ndarray, valid: np.ndarray) -> np.ndarray:

@@ -84,9 +84,10 @@ class SolverReport:
 
 @dataclass(frozen=True)
 class ExcludedPoints:
-    """Corners left out of the fit: robust outliers, those the model cannot represent (and
-    why), and those set aside before it as misplaced (their board neighbours contradict
-    them: ``fitting.misplaced``). Each is among its view's ``outliers``."""
+    """Corners left out of the fit: outliers (each among its view's ``outliers``), of which
+    ``misplaced`` were set aside before the fit (far beyond the image, or contradicted by
+    their board neighbours: ``fitting.misplaced``), and those the model cannot represent
+    (and why)."""
 
     outliers: int
     outside_model: int

@@ -181,14 +181,15 @@ def _calibrate(observations, method, progress, outlier_sigma, **settings) -> Cal
             name, res.poses[k, :3].copy(), res.poses[k, 3:].copy(), metrics.rmse(r), metrics.rmse_axis(r),
             int(len(r)), sorted(int(i) for i in np.concatenate([original[local[m & ~inlier]], set_aside])),
         ))
+    n_misplaced = sum(len(misplaced.get(name, ())) for name in names)  # in the views used
     fit_metrics = FitMetrics.of(full[inlier], data.image_points[inlier], obs.image_size)
     solver = SolverReport(res.iterations, res.status, res.message, res.cost, res.model.n_params + 6 * data.n_views,
                           time.perf_counter() - t0)
     diagnostics = Diagnostics(
         extra=dict(fit.diagnostics), restart=fit.restart, model_choice=fit.model_choice, solver=solver,
         coverage_hull=coverage_hull(data.image_points[inlier]),
-        excluded_points=ExcludedPoints(int(outlier.sum()), int(fit.excluded.sum()), fit.excluded_reason,
-                                       sum(len(misplaced.get(name, ())) for name in names)))
+        excluded_points=ExcludedPoints(int(outlier.sum()) + n_misplaced, int(fit.excluded.sum()), fit.excluded_reason,
+                                       n_misplaced))
     settings_out = {"method": method, "outlier_sigma": outlier_sigma, **fit.settings}
     progress("done", 1.0)
     return Calibration(res.model, obs.image_size, method, views, dropped, fit_metrics, settings_out, diagnostics,

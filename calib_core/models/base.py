@@ -266,36 +266,38 @@ def refine_preimage(model: CameraModel, xn: np.ndarray, uv: np.ndarray, tol: flo
     xn = np.array(xn, dtype=np.float64)
     err = pixel_error(model, xn, uv)
     active = np.flatnonzero(np.linalg.norm(err, axis=-1) > tol)
-    for _ in range(max_iterations):
-        if not len(active):
-            break
-        with np.errstate(all="ignore"):
+    # Steps toward pixels the model cannot reach overflow or divide by zero: those points
+    # fail by their error (not below the last one), and numpy's warnings would say nothing.
+    with np.errstate(all="ignore"):
+        for _ in range(max_iterations):
+            if not len(active):
+                break
             p, d_uv, _, _ = model.pixel_of(xn[active], jacobian=True)
             det = d_uv[:, 0, 0] * d_uv[:, 1, 1] - d_uv[:, 0, 1] * d_uv[:, 1, 0]
             d_uv[~(np.abs(det) > 1e-300)] = np.eye(2)  # a singular point fails by its error, not by an exception
             step = np.linalg.solve(d_uv, -(p - uv[active])[..., None])[..., 0]
-        e0 = np.linalg.norm(err[active], axis=-1)
-        trial = xn[active] + step
-        e1 = pixel_error(model, trial, uv[active])
-        worse = ~(np.linalg.norm(e1, axis=-1) < e0)
-        # Only the points whose step overshot are evaluated again: at half the step, then,
-        # those still worse, at every shorter length at once (a point near a fold needs
-        # most of them, and one evaluation of all costs less than as many calls).
-        for lengths in (HALF, SHORTER):
-            redo = np.flatnonzero(worse)
-            if not len(redo):
-                break
-            tried = xn[active[redo], None] + lengths[:, None] * step[redo, None]  # (R, L, 2)
-            errors = pixel_error(model, tried.reshape(-1, 2), np.repeat(uv[active[redo]], len(lengths), axis=0))
-            errors = errors.reshape(len(redo), len(lengths), 2)
-            better = np.linalg.norm(errors, axis=-1) < e0[redo, None]
-            first = np.argmax(better, axis=1)  # the longest that gains
-            ok = better[np.arange(len(redo)), first]
-            trial[redo[ok]], e1[redo[ok]] = tried[ok, first[ok]], errors[ok, first[ok]]
-            worse[redo[ok]] = False
-        moved = active[~worse]
-        xn[moved], err[moved] = trial[~worse], e1[~worse]
-        active = moved[np.linalg.norm(err[moved], axis=-1) > tol]
+            e0 = np.linalg.norm(err[active], axis=-1)
+            trial = xn[active] + step
+            e1 = pixel_error(model, trial, uv[active])
+            worse = ~(np.linalg.norm(e1, axis=-1) < e0)
+            # Only the points whose step overshot are evaluated again: at half the step, then,
+            # those still worse, at every shorter length at once (a point near a fold needs
+            # most of them, and one evaluation of all costs less than as many calls).
+            for lengths in (HALF, SHORTER):
+                redo = np.flatnonzero(worse)
+                if not len(redo):
+                    break
+                tried = xn[active[redo], None] + lengths[:, None] * step[redo, None]  # (R, L, 2)
+                errors = pixel_error(model, tried.reshape(-1, 2), np.repeat(uv[active[redo]], len(lengths), axis=0))
+                errors = errors.reshape(len(redo), len(lengths), 2)
+                better = np.linalg.norm(errors, axis=-1) < e0[redo, None]
+                first = np.argmax(better, axis=1)  # the longest that gains
+                ok = better[np.arange(len(redo)), first]
+                trial[redo[ok]], e1[redo[ok]] = tried[ok, first[ok]], errors[ok, first[ok]]
+                worse[redo[ok]] = False
+            moved = active[~worse]
+            xn[moved], err[moved] = trial[~worse], e1[~worse]
+            active = moved[np.linalg.norm(err[moved], axis=-1) > tol]
     return xn, err
 
 

@@ -140,3 +140,17 @@ def test_a_view_left_with_too_few_corners_says_they_were_set_aside():
                                  "aside as misplaced (beyond the image, or not where their board neighbours put them: "
                                  "wrong ids?)")
     assert np.isfinite(cal.metrics.rmse) and cal.metrics.rmse < 1.0
+
+
+def test_a_degenerate_set_calibrates_without_numpy_warnings():
+    """Newton steps toward pixels a candidate cannot reach overflowed, and numpy said so on stderr
+    (``python -m benchmarks degenerate``, trial 38: a view of one row, a tenth of one thrown off,
+    a fifth of another's ids swapped)."""
+    import warnings
+
+    from benchmarks.bench_degenerate import degenerate_set
+
+    _, _, obs = degenerate_set(38)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        calibrate(obs, "auto")

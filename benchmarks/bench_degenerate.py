@@ -116,7 +116,8 @@ def run(job: tuple[int, str, bool]) -> dict:
     try:
         cal = calibrate(obs, method)
         doc = cal.to_json()
-        finite = "NaN" not in json.dumps(doc) and "Infinity" not in json.dumps(doc)
+        text = json.dumps(doc)
+        finite = "NaN" not in text and "Infinity" not in text
         out.update(outcome="calibrated" if finite else "non-finite", rmse=doc["metrics"]["rmse"])
     except CalibError as e:
         return {**out, "outcome": "refused", "reason": str(e)}

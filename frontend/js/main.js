@@ -75,8 +75,10 @@ async function refresh() {
       if (job.state === "done" && state.shownJob !== job.id) {
         state.shownJob = job.id;
         if (job.set_id && job.set_id !== state.setId) { state.setId = job.set_id; set = await api.set(job.set_id); renderSet(set); }
-        await renderResults(job, set);
+        // shown at once, scrolled to while its figures still come in
+        const drawn = renderResults(job, set);
         if (state.scrollTo === job.id) document.getElementById("results").scrollIntoView({ behavior: "smooth" });
+        await drawn;
       }
     }
   } catch (e) { showError(e); }

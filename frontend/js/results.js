@@ -25,6 +25,12 @@ export async function renderResults(job, set) {
   const section = document.getElementById("results");
   section.hidden = false;
   section.dataset.job = job.id;
+  // busy until the last figure is in: the tables and figures that arrive later move the ones above them
+  section.setAttribute("aria-busy", "true");
+  try { await drawResults(job, set); } finally { section.setAttribute("aria-busy", "false"); }
+}
+
+async function drawResults(job, set) {
   renderDownloads(job.downloads, job);
   const has = (n) => n in job.downloads;
   const [comparison, views, corners, heatmap, field, knots, calibration] = await Promise.all([

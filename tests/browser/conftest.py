@@ -66,3 +66,15 @@ def open_page(browser, service, ready: str = "#method option[value=auto]", viewp
     page.wait_for_selector(ready, state="attached")
     return page, errors
 
+
+
+def hover_figure(page, figure: str, x: float, y: float) -> str:
+    """The tooltip's text with the mouse at (x, y), fractions of ``figure``'s canvas, once every result is
+    drawn: tables and figures that arrive later move the ones below them, and a mouse placed before would
+    end up elsewhere."""
+    page.wait_for_selector("#results[aria-busy=false]", timeout=60_000)
+    canvas = page.locator(f"{figure} canvas")
+    box = canvas.bounding_box()
+    canvas.hover(position={"x": box["width"] * x, "y": box["height"] * y})   # waits for the canvas to stand still
+    page.wait_for_selector("#tooltip:not([hidden])")
+    return page.text_content("#tooltip")

@@ -22,7 +22,7 @@ from calib_core import Calibration
 
 from ..conftest import shared_data
 from ..service.harness import FAST, Service, wait_for
-from .conftest import page_service, screenshots, wait_until
+from .conftest import hover_figure, page_service, screenshots, wait_until
 
 pytestmark = pytest.mark.slow
 
@@ -108,11 +108,7 @@ def test_upload_watch_review_download_and_3d(browser, service, shots, tmp_path):
         for (let i = 0; i < d.length; i += 4 * 37) seen.add(d[i] + ',' + d[i+1] + ',' + d[i+2]);
         return seen.size; }""")
     assert colours > 20
-    page.locator("#fig-heatmap").scroll_into_view_if_needed()
-    box = page.locator("#fig-heatmap canvas").bounding_box()
-    page.mouse.move(box["x"] + box["width"] * 0.45, box["y"] + box["height"] * 0.45)
-    page.wait_for_selector("#tooltip:not([hidden])")
-    assert "px" in page.text_content("#tooltip")
+    assert "px" in hover_figure(page, "#fig-heatmap", 0.45, 0.45)
     page.wait_for_selector("#fig-uncertainty", timeout=30_000)
     for fig in ("#fig-vectors", "#fig-field", "#fig-field-vectors", "#fig-knots", "#fig-coverage"):
         assert page.locator(fig).count() == 1, fig

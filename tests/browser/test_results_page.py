@@ -16,7 +16,7 @@ import time
 import pytest
 
 from ..conftest import ROOT, shared_data
-from .conftest import open_page, page_service, screenshots, wait_until
+from .conftest import hover_figure, open_page, page_service, screenshots, wait_until
 from .test_page import fill_settings
 
 pytestmark = pytest.mark.slow
@@ -151,11 +151,7 @@ def test_gopro_camera_card_distortion_as_angles_words_and_progress(browser, serv
     assert 0.5 < float(fig.get_attribute("data-scale")) < 15   # not ±585 px
     assert "angle off axis" in page.text_content("#fig-field figcaption")
     assert page.locator("#fig-field-vectors").count() == 0  # pinhole offsets of a wide lens: not drawn
-    fig.scroll_into_view_if_needed()
-    box = page.locator("#fig-field canvas").bounding_box()
-    page.mouse.move(box["x"] + box["width"] * 0.2, box["y"] + box["height"] * 0.3)
-    page.wait_for_selector("#tooltip:not([hidden])")
-    assert "° off axis" in page.text_content("#tooltip")
+    assert "° off axis" in hover_figure(page, "#fig-field", 0.2, 0.3)
     # words: no "Table 7", no hex id where a name exists
     page.wait_for_selector("#metrics-quality", timeout=60_000)
     text = page.text_content("main")

@@ -7,8 +7,11 @@ never a traceback.
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import sys
+
+import cv2
 
 from calib_core.errors import CalibError
 
@@ -29,8 +32,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def quiet_library_logs() -> None:
+    """What a command shows is its own words: per-image reasons, one error line. The raw texts
+    behind them (OpenCV's warnings, freecal's log of a detector's exception) are for a service's
+    log, which ``serve`` and ``worker`` configure; here they would only repeat them in OpenCV's terms."""
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+    log = logging.getLogger("freecal")
+    if not any(isinstance(h, logging.NullHandler) for h in log.handlers):
+        log.addHandler(logging.NullHandler())  # a handler: Python's last resort no longer prints them
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if args.command not in ("serve", "worker"):
+        quiet_library_logs()
     try:
         with stdout_session():
             return int(args.run(args) or 0)

@@ -154,12 +154,13 @@ def _extent(ids: np.ndarray, cols: int) -> tuple[int, int, int]:
 
 
 def _probe_all(paths: list[Path], workers: int | None) -> list[tuple[int, int, int] | None]:
-    from .detect import _context, _init_worker
+    from .detect import _context, _init_worker, worker_logging
 
     n = max(1, min(workers or os.cpu_count() or 1, len(paths)))
     if n > 1:
         try:
-            with cf.ProcessPoolExecutor(n, mp_context=_context(), initializer=_init_worker) as pool:
+            with cf.ProcessPoolExecutor(n, mp_context=_context(), initializer=_init_worker,
+                                        initargs=worker_logging()) as pool:
                 return list(pool.map(probe_file, [str(p) for p in paths]))
         except (OSError, NotImplementedError, cf.process.BrokenProcessPool, RuntimeError):
             pass  # no pool here: probe in this process

@@ -10,6 +10,7 @@ plain words.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import logging
 import multiprocessing as mp
 import os
 import time
@@ -18,6 +19,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from ..board import BoardSpec
@@ -188,7 +190,8 @@ def _timed_call(job: tuple) -> tuple[ImageResult, float]:
 def _on_processes(jobs: list[tuple], todo: list[int], n: int, finished: Callable[[int, ImageResult], None]) -> None:
     """Jobs ``todo`` on a pool of n processes; those a dead worker took with it are left undone."""
     try:
-        with cf.ProcessPoolExecutor(n, mp_context=_context(), initializer=_init_worker) as pool:
+        with cf.ProcessPoolExecutor(n, mp_context=_context(), initializer=_init_worker,
+                                    initargs=worker_logging()) as pool:
             futures = {pool.submit(*jobs[k]): k for k in todo}
             for fut in cf.as_completed(futures):
                 try:
@@ -223,13 +226,21 @@ def _context():
     return mp.get_context("spawn")
 
 
-def _init_worker() -> None:
-    import cv2
+def worker_logging() -> tuple[int, bool]:
+    """This process's OpenCV log level, and whether freecal's log is silenced here (the CLI's
+    ``quiet_library_logs``): what a worker process started from it should do the same."""
+    quiet = any(isinstance(h, logging.NullHandler) for h in logging.getLogger("freecal").handlers)
+    return cv2.utils.logging.getLogLevel(), quiet
 
+
+def _init_worker(opencv_log_level: int, quiet: bool) -> None:
     from ..lifetime import die_with_parent
 
     die_with_parent()  # a detection killed outright (time limit, its worker gone) takes its pool with it
     cv2.setNumThreads(1)  # one image per core: OpenCV's own threads would only oversubscribe
+    cv2.utils.logging.setLogLevel(opencv_log_level)
+    if quiet:
+        logging.getLogger("freecal").addHandler(logging.NullHandler())
 
 
 def _reject_odd_sizes(results: list[ImageResult]) -> None:

@@ -36,6 +36,7 @@ if TYPE_CHECKING:
 log = logging.getLogger("freecal.detect")
 
 MIN_CORNERS = 6            # fewer cannot constrain a view's pose and the lens together
+MIN_SIDE = 32              # px: a narrower image cannot show the smallest board's squares a few pixels wide
 MAX_EDGE_WIDTH = 8.0       # px, black-to-white transition; OpenCV calls < 3 sharp
 REDUCE_ABOVE = 12e6        # pixels: detect on a reduced copy above this ...
 REDUCED_PIXELS = 3e6       # ... of about this many pixels, refine at full resolution
@@ -115,6 +116,10 @@ def on_file(path: str | Path, name: str | None,
             return ImageResult(name, "rejected", 0, str(exc))
         if gray is None:
             return ImageResult(name, "rejected", 0, "could not decode the file as an image")
+        h, w = gray.shape
+        if min(h, w) < MIN_SIDE:
+            return ImageResult(name, "rejected", 0, f"too small to show a board: {w} x {h} px (each side needs at "
+                               f"least {MIN_SIDE} px)")
         circle = find_image_circle(gray)  # here, where every detector's image is decoded once
         res = detect(gray, circle)
         res.name = name

@@ -168,6 +168,24 @@ def test_cli_detect_writes_observations(images, tmp_path, capsys):
     assert "expected a grid like 9x6" in capsys.readouterr().err
 
 
+def test_images_too_small_or_undecodable_are_said_in_words_on_the_cli_alone(images, tmp_path, capfd, monkeypatch):
+    """A 1 x 1 or 2 px high image crashed OpenCV's thresholds (its assertion text on stderr, numpy warnings
+    from the image circle, a reason blaming the file); a 32-bit TIFF made OpenCV print its own warning."""
+    cv2.imwrite(str(images / "f_dot.png"), np.zeros((1, 1), np.uint8))
+    cv2.imwrite(str(images / "g_strip.png"), np.zeros((2, 500), np.uint8))
+    cv2.imwrite(str(images / "h_float.tiff"), board_image().astype(np.float32) / 255)
+    monkeypatch.setattr(detect, "POOL_PAYS_AFTER", 0.0)  # and from worker processes too
+    assert cli(["detect", str(images), "--board", "chessboard:6x5:10mm", "--workers", "2", "-q",
+                "-o", str(tmp_path / "obs.json")]) == 0
+    out, err = capfd.readouterr()
+    rows = {line.split()[0]: line for line in out.splitlines() if line.strip()}
+    assert "too small to show a board: 1 x 1 px" in rows["f_dot.png"]
+    assert "too small to show a board: 500 x 2 px" in rows["g_strip.png"]
+    assert "could not decode the file as an image" in rows["h_float.tiff"]
+    for raw in ("OpenCV", "WARN", "Traceback", "Warning"):
+        assert raw not in err, err
+
+
 def test_grids_that_skip_or_shear_board_lines_are_read_as_such():
     img = board_image()
     c, r = np.meshgrid(np.arange(6), np.arange(5))

@@ -16,6 +16,7 @@ from typing import Any, BinaryIO
 
 from calib_core import Observations
 from calib_core.detection.detect import IMAGE_SUFFIXES  # one list: what the command line and the service read
+from calib_core.detection.detect_image import MIN_SIDE  # one limit: an upload is skipped where detection would refuse
 
 from ..base import storage
 from ..base.settings import Settings
@@ -23,7 +24,6 @@ from . import bounded_json
 from .errors import ApiError
 from .image_header import check_decodable, check_pixels
 
-MIN_SIDE = 32               # pixels: no board's corners fit in less
 MAX_ZIP_RATIO = 200         # unpacked / packed bytes of a zip's images
 CHUNK_SLACK = 1024 * 1024    # small zips of tiny images may compress better: no ratio check below this
 CORNER_SUFFIXES = (".json", ".vnl")   # corners found elsewhere: freecal observations, mrcal's corners.vnl

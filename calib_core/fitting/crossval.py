@@ -13,9 +13,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from ..models.base import CameraModel, free_parameters
+from .cholesky import cholesky_solve
 from .gram import gram
 from .solve import Data, SolveSettings, levenberg_marquardt, residuals, residuals_and_jacobian, select_views
 
@@ -217,12 +217,8 @@ def pose_basis(p: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
 
 
 def _spd_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a⁻¹ b for a symmetric positive definite ``a`` (overwritten): LAPACK's
-    Cholesky solver, as ``scipy.linalg.solve(assume_a="pos")`` calls it,
-    without its condition estimate."""
-    _, x, info = scipy.linalg.lapack.dposv(a, b, lower=0, overwrite_a=1)
-    if info > 0:
+    """a⁻¹ b (``a`` overwritten); a fit that no longer determines the model is an error here."""
+    x = cholesky_solve(a, b, overwrite=True)
+    if x is None:
         raise np.linalg.LinAlgError("the fit without this view is undetermined (not positive definite)")
-    if info < 0:
-        raise ValueError(f"dposv: illegal argument {-info}")
     return x

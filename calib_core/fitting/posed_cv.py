@@ -21,6 +21,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
+from .cholesky import cholesky_solve
 from .crossval import pose_basis
 from .gram import gram
 from .smoothing import CVCurve, gauge_null_space, walk_lambdas
@@ -98,5 +99,5 @@ def posed_cv_curve(b: sp.csr_matrix, weights: np.ndarray, bend: sp.csr_matrix, g
 
 def _spd_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a⁻¹ b by Cholesky; by least squares where rounding leaves ``a`` indefinite."""
-    _, x, info = scipy.linalg.lapack.dposv(a, b, lower=0, overwrite_a=0)
-    return x if info == 0 else np.linalg.lstsq(a, b, rcond=None)[0]
+    x = cholesky_solve(a, b)
+    return np.linalg.lstsq(a, b, rcond=None)[0] if x is None else x

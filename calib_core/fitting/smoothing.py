@@ -34,6 +34,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
+from .cholesky import cholesky_solve
 from .gram import gram
 
 # Up to 1e6: over a parametric core that already fits the lens the field is
@@ -226,18 +227,12 @@ def _spd_solve(build, b: np.ndarray) -> np.ndarray:
     place by LAPACK's Cholesky solver (its lower triangle: the transposed
     array's memory is in LAPACK's order, so nothing is copied); by LU on a
     fresh copy where rounding leaves it indefinite."""
-    a = build()
-    _, x, info = scipy.linalg.lapack.dposv(a.T, b, lower=1, overwrite_a=1)
-    if info != 0:
-        return np.linalg.solve(build(), b)
-    return x
+    x = cholesky_solve(build().T, b, lower=True, overwrite=True)
+    return np.linalg.solve(build(), b) if x is None else x
 
 
 def _spd_solve_lower(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a⁻¹ b for a symmetric positive definite ``a`` of which only the lower
     triangle is filled (Fortran order, as BLAS's syrk returns it)."""
-    _, x, info = scipy.linalg.lapack.dposv(a, b, lower=1, overwrite_a=0)
-    if info != 0:
-        full = np.tril(a) + np.tril(a, -1).T
-        return np.linalg.solve(full, b)
-    return x
+    x = cholesky_solve(a, b, lower=True)
+    return np.linalg.solve(np.tril(a) + np.tril(a, -1).T, b) if x is None else x

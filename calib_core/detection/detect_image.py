@@ -237,8 +237,13 @@ def _chessboard(gray: np.ndarray, board: BoardSpec, classic_first: bool = True):
         return None, None, None, "board not found"
     placed = place_grid(grid.astype(np.float64), cols, rows, gray)
     if placed is None:
-        return None, None, None, (f"board not found: the corner grid seen ({grid.shape[1]} × {grid.shape[0]}) "
-                                  f"does not fit a {cols} × {rows} board; is the board's size right (inner corners)?")
+        h, w = grid.shape[:2]
+        seen = f"board not found: the corner grid seen ({w} × {h})"
+        if max(h, w) > max(cols, rows) or min(h, w) > min(cols, rows):
+            return None, None, None, f"{seen} does not fit a {cols} × {rows} board; is the board's size right (inner corners)?"
+        # It fits the board: what failed is reading its squares as black and white
+        return None, None, None, (f"{seen} fits the board, but its squares do not read as a chessboard's black and "
+                                  "white ones (markers inside them?): is it a ChArUco board or an AprilGrid?")
     sharp = _edge_width(gray, grid)
     return placed[0], placed[1], sharp, ""
 

@@ -58,6 +58,12 @@ def test_charuco_full_and_occluded():
     wrong = _detect("opencv-charuco-5x7", "charuco:7x5:40mm:20mm:DICT_6X6_250")   # turned: other ids there
     assert wrong.observations is None
     assert all("not where a 7 × 5 ChArUco board" in r.reason for r in wrong.reports)
+    # Taken for a chessboard of its inner corners: a grid of the board's own size is not called a wrong size
+    # (it read "the corner grid seen (4 × 6) does not fit a 4 × 6 board")
+    chess = _detect("opencv-charuco-5x7", "chessboard:4x6:40mm")
+    reasons = {r.name: r.reason for r in chess.reports}
+    assert "is it a ChArUco board" in reasons["img_02.jpg"], reasons
+    assert not any("(4 × 6) does not fit" in r or "(6 × 4) does not fit" in r for r in reasons.values()), reasons
 
 
 def _babel_reference(root, name):

@@ -6,13 +6,14 @@
 import { api, apiUrl } from "./api.js";
 import { el, px, seconds } from "./format.js";
 import { when } from "./names.js";
+import { settingsForm } from "./settings.js";
 import { renderRigViewer } from "./viewer.js";
 import { pageWords } from "./words.js";
 
 const LABELS = { "rig.json": "Rig (freecal JSON)", "camchain.yaml": "Kalibr camchain (YAML)",
   "stereo.yaml": "OpenCV stereo (YAML, a pair)" };
 
-const rig = { jobId: null, setsSig: null, shown: "", onChange: () => {} };
+const rig = { jobId: null, setsSig: null, shown: "", onChange: () => {}, settings: () => ({ method: "auto", settings: {} }) };
 
 /** Wire the form; ``methods`` as GET /api/methods gives them, ``onChange`` redraws the page (a job was made). */
 export function initRig(methods, onChange) {
@@ -20,6 +21,7 @@ export function initRig(methods, onChange) {
   const select = document.getElementById("rig-method");
   // the calibration's choices, less "compare" (a rig calibrates each camera with one method)
   select.replaceChildren(...methods.methods.map((m) => el("option", { value: m, selected: m === "auto" }, m)));
+  rig.settings = settingsForm(select, document.getElementById("rig-settings-fields"), "rig-setting");
   document.getElementById("rig-form").addEventListener("submit", (e) => { e.preventDefault(); submit(); });
   document.getElementById("rig-cameras").addEventListener("input", referenceOptions);
 }
@@ -74,7 +76,7 @@ async function submit() {
   const picked = rows().filter((r) => r.use);
   const reference = picked.find((r) => r.setId === document.getElementById("rig-reference").value);
   const body = { kind: "rig", set_ids: picked.map((r) => r.setId), names: picked.map((r) => r.name),
-    method: document.getElementById("rig-method").value, settings: {},
+    ...rig.settings(),
     hold_models: document.getElementById("rig-hold").checked };
   if (reference) body.reference = reference.name;
   const button = document.getElementById("rig-submit");

@@ -45,54 +45,64 @@ export const METHOD_HELP = {
   compare: "Every method on the same corners, cross-validated, with a verdict: slow (minutes).",
 };
 
+/** The calibration form's method and settings (ids ``method``, ``settings-fields``, ``setting-KEY``). */
 export function initMethods(methods) {
   const select = document.getElementById("method");
   select.replaceChildren();
   for (const m of methods.methods) select.append(el("option", { value: m, selected: m === "auto" }, m));
   if (methods.compare) select.append(el("option", { value: "compare" }, "compare all methods"));
-  select.addEventListener("change", renderFields);
-  renderFields();
+  main = settingsForm(select, document.getElementById("settings-fields"), "setting");
 }
 
-function methodHelp() {
-  const select = document.getElementById("method");
-  let help = document.getElementById("method-help");
+let main = null;
+
+/** The settings object for POST /api/jobs from the calibration form: only fields the user changed from the defaults. */
+export function chosenSettings() {
+  return main();
+}
+
+/** A method ``select`` and the settings fields in ``box`` that follow it (ids ``PREFIX-KEY``), each with its
+ * one-line help, and the method's own help under the select. Returns what POST /api/jobs takes from them:
+ * ``{method, settings}``, only the fields changed from their defaults (empty ones: the method's own). */
+export function settingsForm(select, box, prefix) {
+  const render = () => {
+    methodHelp(select);
+    box.replaceChildren();
+    for (const f of fieldsFor(select.value)) {
+      const id = `${prefix}-${f.key}`;
+      const described = { "aria-describedby": `${id}-help` };
+      const input = f.options
+        ? el("select", { id, "data-key": f.key, ...described }, f.options.map((o) => el("option", { value: o, selected: o === f.def }, o)))
+        : el("input", { id, "data-key": f.key, type: f.type, step: "any", placeholder: f.placeholder, ...described });
+      box.append(el("div", {}, el("label", { for: id }, f.label), input, el("small", { id: `${id}-help`, class: "help" }, f.help)));
+    }
+  };
+  select.addEventListener("change", render);
+  render();
+  return () => {
+    const method = select.value, out = {};
+    for (const f of fieldsFor(method)) {
+      const v = document.getElementById(`${prefix}-${f.key}`).value.trim();
+      if (v === "" || v === f.def) continue;
+      if (f.key === "intervals" && /^\d+x\d+$/.test(v)) out[f.key] = v.split("x").map(Number);
+      else if (f.type === "number" || /^[\d.eE+-]+$/.test(v)) out[f.key] = Number(v);
+      else out[f.key] = v;
+    }
+    return { method, settings: out };
+  };
+}
+
+function methodHelp(select) {
+  const id = `${select.id}-help`;
+  let help = document.getElementById(id);
   if (!help) {
-    help = el("small", { id: "method-help", class: "help" });
+    help = el("small", { id, class: "help" });
     select.after(help);
-    select.setAttribute("aria-describedby", "method-help");
+    select.setAttribute("aria-describedby", id);
   }
   help.textContent = METHOD_HELP[select.value] || "";
 }
 
 function fieldsFor(method) {
   return { bspline: BSPLINE, compare: COMPARE, auto: AUTO }[method] || COMMON;
-}
-
-function renderFields() {
-  methodHelp();
-  const box = document.getElementById("settings-fields");
-  box.replaceChildren();
-  for (const f of fieldsFor(document.getElementById("method").value)) {
-    const id = `setting-${f.key}`;
-    const described = { "aria-describedby": `${id}-help` };
-    const input = f.options
-      ? el("select", { id, "data-key": f.key, ...described }, f.options.map((o) => el("option", { value: o, selected: o === f.def }, o)))
-      : el("input", { id, "data-key": f.key, type: f.type, step: "any", placeholder: f.placeholder, ...described });
-    box.append(el("div", {}, el("label", { for: id }, f.label), input, el("small", { id: `${id}-help`, class: "help" }, f.help)));
-  }
-}
-
-/** The settings object for POST /api/jobs: only fields the user changed from the defaults. */
-export function chosenSettings() {
-  const method = document.getElementById("method").value;
-  const out = {};
-  for (const f of fieldsFor(method)) {
-    const v = document.getElementById(`setting-${f.key}`).value.trim();
-    if (v === "" || v === f.def) continue;
-    if (f.key === "intervals" && /^\d+x\d+$/.test(v)) out[f.key] = v.split("x").map(Number);
-    else if (f.type === "number" || /^[\d.eE+-]+$/.test(v)) out[f.key] = Number(v);
-    else out[f.key] = v;
-  }
-  return { method, settings: out };
 }

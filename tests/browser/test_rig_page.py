@@ -42,7 +42,14 @@ def test_a_stereo_pair_is_calibrated_from_the_rig_panel(browser, service, shots,
     page.get_by_label("right.json", exact=True).check()
     page.fill("#rig-cameras tbody tr:nth-child(2) input[type=text]", "right-cam")   # renamed by the user
     assert page.eval_on_selector_all("#rig-reference option", "os => os.map(o => o.textContent)") == ["left", "right-cam"]
+    # the method's settings, as the calibration form has them: each with its help, and only a changed one sent
+    page.select_option("#rig-method", "bspline")
+    page.click("#rig-settings summary")
+    assert page.text_content("#rig-method-help").strip() and page.text_content("#rig-setting-intervals-help").strip()
+    page.locator("#rig").screenshot(path=shots / "01-rig-settings.png")
     page.select_option("#rig-method", "zhang")
+    assert page.locator("#rig-setting-intervals").count() == 0
+    page.fill("#rig-setting-max_iterations", "300")
     page.locator("#rig").screenshot(path=shots / "01-rig-form.png")
     page.click("#rig-submit")
 
@@ -53,7 +60,7 @@ def test_a_stereo_pair_is_calibrated_from_the_rig_panel(browser, service, shots,
     assert page.text_content("#rig-progress-label").startswith("done")
     [job] = rig_jobs(service)
     assert job["rig"]["names"] == ["left", "right-cam"] and job["rig"]["reference"] == "left"
-    assert job["method"] == "zhang" and job["rig"]["hold_models"] is False
+    assert job["method"] == "zhang" and job["rig"]["hold_models"] is False and job["settings"] == {"max_iterations": 300}
     summary = job["summary"]
 
     # the table is the job's summary: a row per camera, then the rig's

@@ -220,11 +220,22 @@ def prior_field(init_model, intrinsics: np.ndarray, field: BSplineField, base: s
     y = (grid[:, 1] - cy) / fy
     rays = camera.ray_of(np.column_stack([(grid[:, 0] - cx - s * y) / fx, y]), base)
     offset = init_model.project(rays) - grid
-    ok = np.all(np.isfinite(offset), axis=1)
+    # Past the angle where the initial camera's radius stops growing, its polynomial folds back and
+    # projects anywhere (a fisheye seen within 60°: 31 000 px at the domain's corners, which bent the
+    # whole field): the field there is left to the smoothness term.
+    ok = np.all(np.isfinite(offset), axis=1) & (camera.off_axis(rays) < unfolded_reach(init_model))
     b = field.design(grid[ok]).matrix(field.n_controls)
     d2 = field.bending()
     a = (b.T @ b + 1e-6 * (d2.T @ d2) + 1e-9 * sp.identity(field.n_controls)).toarray()
     return np.linalg.solve(a, b.T @ offset[ok]).reshape(field.n_u, field.n_v, 2)
+
+
+def unfolded_reach(model) -> float:
+    """The angle off axis (rad) up to which ``model``'s radius grows (π at most)."""
+    theta = np.linspace(1e-3, np.pi, 2000)
+    _, slope = model.radial_profile(theta)
+    fold = np.flatnonzero(slope <= 0)
+    return float(theta[fold[0]]) if len(fold) else float(np.pi)
 
 
 def base_for(init, data: Data) -> tuple[str, dict[str, float]]:

@@ -34,6 +34,8 @@ INTRINSICS = ("fx", "fy", "cx", "cy", "skew")
 FOV_SAMPLES = 400            # rays along each line the field of view is swept over
 UNCERTAINTY_CELLS = 32       # projection-uncertainty samples across the image's longer side
 HELD_CORE = "held where the core's own fit put them (the field takes what they would)"
+HELD_ANGULAR = ("held where the initial camera put it: on an angular base the field follows a turn of the camera, "
+                "which would walk it")
 
 
 def model_in_words(model: CameraModel) -> str:
@@ -118,7 +120,7 @@ def parameter_table(model: CameraModel, cov: np.ndarray | None) -> list[dict[str
     parametric = _parametric_part(model)
     if isinstance(model, BSplineModel):
         for i, name in enumerate(INTRINSICS):
-            add(name, "intrinsics", i, "px")
+            add(name, "intrinsics", i, "px", note=HELD_ANGULAR if free is not None and not free[i] else "")
         return rows
     if parametric is None:
         return rows

@@ -11,10 +11,14 @@ fx, fy, cx, cy, skew are the camera's local pinhole at the optical axis, as in
 OpenCV's models, and the six affine degrees of freedom are pinned by six
 constraint rows. The remaining near-degeneracy (a common tilt of every pose
 against a projective change of the field, which a principal-point shift
-mimics to first order) is governed by the regularisers. Holding cx, cy at
-their initial values would shorten the solve (40 → 17 iterations) but was
-measured to cost accuracy on wide lenses (fisheye hold-out 0.19 → 0.42 px):
-they stay free.
+mimics to first order) is governed by the regularisers on the pinhole base,
+where holding cx, cy was measured to cost accuracy on wide lenses (fisheye
+hold-out 0.19 → 0.42 px): they stay free there. On an angular base the field
+follows a turn of the whole camera almost exactly, and a free fit walks the
+principal point along that valley to wherever the regularisers settle it
+(BabelCalib: 60 px from the parametric camera's). There cx, cy and skew stay
+where the initial camera put them (``ANGULAR_HELD``), as mrcal locks its
+splined model's core (docs/model-choice.md, "Why the fixed grid crawls").
 
 Regularisers, as prior rows of the least-squares cost
 ``Σ‖r‖² + λ_reg ‖P − P₀‖² + λ_smooth ‖D (P − P₀)‖²``: D approximates the
@@ -39,6 +43,7 @@ from .base import CameraModel, Prior, intrinsics_jacobian
 from .bspline_basis import BSplineField
 
 GAUGE_WEIGHT = 1e4  # constraint rows are multiplied by this: violations ~1e-8 px
+ANGULAR_HELD = (2, 3, 4)  # cx, cy, skew: held on an angular base (module text)
 
 
 def gauge_rows(field: BSplineField, point: tuple[float, float]) -> sp.csr_matrix:
@@ -120,6 +125,13 @@ class BSplineModel(CameraModel):
     def n_params(self) -> int:
         return 5 + 2 * self.field.n_controls
 
+    def free_mask(self) -> np.ndarray | None:
+        if self.base == "pinhole":
+            return None
+        free = np.ones(self.n_params, dtype=bool)
+        free[list(ANGULAR_HELD)] = False
+        return free
+
     def params(self) -> np.ndarray:
         c = self.field.control
         return np.concatenate([self.intrinsics, c[..., 0].ravel(), c[..., 1].ravel()])
@@ -191,6 +203,7 @@ class BSplineModel(CameraModel):
             "gauge": {
                 "type": "field value and gradient zero at a fixed ideal pixel",
                 "point": list(self.gauge_point) if self.gauge_point else None,
+                "held": [] if self.base == "pinhole" else ["cx", "cy", "skew"],
             },
             "prior_field": "initial Kannala-Brandt camera" if self.prior_control is not None else "zero",
         }

@@ -1,6 +1,7 @@
 """The paper's model's base projection, left to "auto": the pinhole (the
 paper's) on ordinary lenses, the base nearer a wide lens's initial camera on
 fisheyes, where a field over the pinhole base walks off."""
+import numpy as np
 import pytest
 
 from calib_core.evaluation.evaluate import evaluate
@@ -48,8 +49,29 @@ def test_a_fisheye_seen_within_60_degrees_fits_on_a_fixed_grid_without_a_restart
     cal = calibrate(train, "bspline", core="none", intervals=10, lambda_smooth=1.0)
     assert cal.diagnostics.restart is None
     assert evaluate(cal, holdout)["rmse"] < 0.6
-    fx, fy = cal.model.intrinsics[:2]
+    fx, fy, cx, cy, skew = cal.model.intrinsics
     assert abs(fx / 330 - 1) < 0.02 and abs(fy / 331 - 1) < 0.02   # the lens's (calib_core.synth.opencv_lenses)
+    # on an angular base the principal point stays where the parametric camera put it: the lens's, here
+    # (free, the field's turn walked it to (659, 495))
+    assert abs(cx - 645) < 2 and abs(cy - 508) < 2 and skew == 0
+
+
+def test_on_an_angular_base_the_principal_point_and_skew_are_held_and_said_so():
+    """A field on an angular base follows a turn of the whole camera; free, the principal point walks
+    along that valley (BabelCalib: 60 px in 59 iterations). It is held at the initial camera's, as mrcal
+    holds its splined model's core; on the pinhole base it stays free."""
+    from calib_core.evaluation.parameters import parameter_table
+
+    wide = calibrate(synthetic("fisheye").train, "bspline", intervals=8, lambda_smooth=10.0)
+    assert wide.settings["base_used"] != "pinhole" and wide.settings["gauge"]["held"] == ["cx", "cy", "skew"]
+    np.testing.assert_allclose(wide.model.intrinsics[2:4], wide.settings["gauge"]["point"])  # the initial camera's
+    assert wide.model.intrinsics[4] == 0.0
+    rows = {r["name"]: r for r in parameter_table(wide.model, None)}
+    assert [rows[n]["status"] for n in ("fx", "fy", "cx", "cy", "skew")] == ["fitted"] * 2 + ["held"] * 3
+    assert "turn of the camera" in rows["cx"]["note"]
+    ordinary = calibrate(synthetic("decentred").train, "bspline", intervals=8, lambda_smooth=10.0)
+    assert ordinary.settings["gauge"]["held"] == [] and ordinary.model.free_mask() is None
+    assert not np.allclose(ordinary.model.intrinsics[2:4], ordinary.settings["gauge"]["point"])
 
 
 @pytest.mark.parametrize("kind", ["radial", "decentred"])

@@ -111,6 +111,7 @@ class BSplineModel(CameraModel):
         lambda_smooth: float = 1e-3,
         gauge_point: tuple[float, float] | None = None,
         prior_control: np.ndarray | None = None,
+        hold_centre: bool | None = None,
     ):
         self.intrinsics = np.asarray(intrinsics, dtype=np.float64)
         self.field = field
@@ -119,6 +120,8 @@ class BSplineModel(CameraModel):
         self.lambda_smooth = float(lambda_smooth)
         self.gauge_point = None if gauge_point is None else (float(gauge_point[0]), float(gauge_point[1]))
         self.prior_control = prior_control  # (n_u, n_v, 2) or None
+        # cx, cy, skew held (ANGULAR_HELD): on an angular base unless told (a file from before the hold: free)
+        self.hold_centre = base != "pinhole" if hold_centre is None else bool(hold_centre)
         self._prior_rows: tuple[sp.csr_matrix, np.ndarray] | None = None  # built on first use, kept by with_params
 
     @property
@@ -126,7 +129,7 @@ class BSplineModel(CameraModel):
         return 5 + 2 * self.field.n_controls
 
     def free_mask(self) -> np.ndarray | None:
-        if self.base == "pinhole":
+        if not self.hold_centre:
             return None
         free = np.ones(self.n_params, dtype=bool)
         free[list(ANGULAR_HELD)] = False
@@ -190,7 +193,10 @@ class BSplineModel(CameraModel):
         # P₀ (the initial camera's field) is not recorded: the prior rows, and
         # so the covariance, do not depend on it.
         lambda_reg, lambda_smooth, gauge_point = recorded_regularisation(settings, (self.lambda_reg, self.lambda_smooth))
-        return BSplineModel(self.intrinsics, self.field, self.base, lambda_reg, lambda_smooth, gauge_point)
+        gauge = settings.get("gauge")
+        held = gauge.get("held") if isinstance(gauge, dict) else None
+        return BSplineModel(self.intrinsics, self.field, self.base, lambda_reg, lambda_smooth, gauge_point,
+                            hold_centre=bool(held) if isinstance(held, list) else False)
 
     # ---- JSON ------------------------------------------------------------------
     def distortion_json(self) -> dict[str, Any]:
@@ -203,7 +209,7 @@ class BSplineModel(CameraModel):
             "gauge": {
                 "type": "field value and gradient zero at a fixed ideal pixel",
                 "point": list(self.gauge_point) if self.gauge_point else None,
-                "held": [] if self.base == "pinhole" else ["cx", "cy", "skew"],
+                "held": ["cx", "cy", "skew"] if self.hold_centre else [],
             },
             "prior_field": "initial Kannala-Brandt camera" if self.prior_control is not None else "zero",
         }

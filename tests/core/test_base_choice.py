@@ -4,6 +4,7 @@ fisheyes, where a field over the pinhole base walks off."""
 import numpy as np
 import pytest
 
+from calib_core import Calibration
 from calib_core.evaluation.evaluate import evaluate
 from calib_core.pipeline import calibrate
 from calib_core.synth.opencv_lenses import fisheye_lens, views_of
@@ -69,6 +70,11 @@ def test_on_an_angular_base_the_principal_point_and_skew_are_held_and_said_so():
     rows = {r["name"]: r for r in parameter_table(wide.model, None)}
     assert [rows[n]["status"] for n in ("fx", "fy", "cx", "cy", "skew")] == ["fitted"] * 2 + ["held"] * 3
     assert "turn of the camera" in rows["cx"]["note"]
+    # read back, as held; a file written before the hold (no "held") reads as fitted, which it was
+    doc = wide.to_json()
+    np.testing.assert_array_equal(Calibration.from_json(doc).model.free_mask(), wide.model.free_mask())
+    del doc["settings"]["gauge"]["held"]
+    assert Calibration.from_json(doc).model.free_mask() is None
     ordinary = calibrate(synthetic("decentred").train, "bspline", intervals=8, lambda_smooth=10.0)
     assert ordinary.settings["gauge"]["held"] == [] and ordinary.model.free_mask() is None
     assert not np.allclose(ordinary.model.intrinsics[2:4], ordinary.settings["gauge"]["point"])

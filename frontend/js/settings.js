@@ -45,20 +45,20 @@ export const METHOD_HELP = {
   compare: "Every method on the same corners, cross-validated, with a verdict: slow (minutes).",
 };
 
+let calibrationForm = () => ({ method: "auto", settings: {} });   // settingsForm's reader, once initMethods ran
+
 /** The calibration form's method and settings (ids ``method``, ``settings-fields``, ``setting-KEY``). */
 export function initMethods(methods) {
   const select = document.getElementById("method");
   select.replaceChildren();
   for (const m of methods.methods) select.append(el("option", { value: m, selected: m === "auto" }, m));
   if (methods.compare) select.append(el("option", { value: "compare" }, "compare all methods"));
-  main = settingsForm(select, document.getElementById("settings-fields"), "setting");
+  calibrationForm = settingsForm(select, document.getElementById("settings-fields"), "setting");
 }
-
-let main = null;
 
 /** The settings object for POST /api/jobs from the calibration form: only fields the user changed from the defaults. */
 export function chosenSettings() {
-  return main();
+  return calibrationForm();
 }
 
 /** A method ``select`` and the settings fields in ``box`` that follow it (ids ``PREFIX-KEY``), each with its

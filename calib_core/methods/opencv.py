@@ -114,20 +114,27 @@ def fit_opencv(data: Data, image_size: tuple[int, int], s: OpenCVSettings, progr
     xd = (sub.image_points - [cx, cy]) / [fx, fy]
     progress("levenberg-marquardt", 0.2)
     settings = SolveSettings(s.max_iterations, s.ftol)
-    # The distortion-free start, beside the linear seed: the seed can be poor at wide angles
-    # (a polynomial in r² far out).
-    bare = (OpenCVModel([fx, fy, cx, cy, 0.0], np.zeros(s.n_coefficients)), init.poses)
+
+    def start(coefficients: np.ndarray) -> tuple[OpenCVModel, np.ndarray]:
+        return OpenCVModel([fx, fy, cx, cy, 0.0], coefficients), init.poses
+
+    def first_starts(n: int) -> list[tuple[OpenCVModel, np.ndarray]]:
+        # The linear seed, and no distortion: the seed can be poor at wide angles (a polynomial
+        # in r² far out).
+        return [start(seed_coefficients(xn, xd, n)), start(np.zeros(n))]
+
     if s.n_coefficients <= 5:
-        starts = [(OpenCVModel([fx, fy, cx, cy, 0.0], seed_coefficients(xn, xd, s.n_coefficients)), init.poses), bare]
+        starts = first_starts(s.n_coefficients)
     else:
         # Nested models start from the best 5-coefficient fit, so that rational is never worse
-        # than zhang on the same corners. Their own linear seed is not raced: it never reached
-        # the lowest minimum (docs/model-choice.md, "The rational model's starts").
-        nested = five.result if five is not None and np.array_equal(five.excluded, ~ok) else levenberg_marquardt(
-            OpenCVModel([fx, fy, cx, cy, 0.0], seed_coefficients(xn, xd, 5)), init.poses, sub, settings)
+        # than zhang on the same corners, and from no distortion. Their own linear seed is not
+        # raced: it never reached the lowest minimum (docs/model-choice.md, "The rational
+        # model's starts").
+        nested = five.result if five is not None and np.array_equal(five.excluded, ~ok) else best_of(
+            first_starts(5), sub, settings)
         k = np.zeros(s.n_coefficients)
         k[:5] = nested.model.coefficients
-        starts = [(OpenCVModel(nested.model.intrinsics, k), nested.poses), bare]
+        starts = [(OpenCVModel(nested.model.intrinsics, k), nested.poses), start(np.zeros(s.n_coefficients))]
     res = best_of(starts, sub, settings)
     if not np.all(np.isfinite(res.residuals)):
         raise DataError("the OpenCV model diverged on these corners (non-finite projections); "

@@ -7,6 +7,12 @@ import pytest
 from calib_core import Calibration, calibrate, synth
 from calib_core.errors import SettingsError
 from calib_core.evaluation.evaluate import evaluate
+from calib_core.fitting.solve import SolveSettings, levenberg_marquardt
+from calib_core.methods.common import no_progress
+from calib_core.methods.opencv import OpenCVSettings, RationalSettings, fit_opencv
+from calib_core.models.opencv import OpenCVModel
+from calib_core.pipeline import to_data
+from calib_core.synth import opencv_lenses
 
 from ..conftest import synthetic
 
@@ -77,13 +83,6 @@ def test_the_rational_model_takes_the_lowest_minimum_its_starts_reach():
     """The rational model starts from the best 5-coefficient fit (so it is never worse
     than zhang) and from no distortion: on this lens drawn at random the distortion-free
     start reaches a lower minimum than the nested one, and the fit must keep it."""
-    from calib_core.fitting.solve import SolveSettings, levenberg_marquardt
-    from calib_core.methods.common import no_progress
-    from calib_core.methods.opencv import OpenCVSettings, RationalSettings, fit_opencv
-    from calib_core.models.opencv import OpenCVModel
-    from calib_core.pipeline import to_data
-    from calib_core.synth import opencv_lenses
-
     lens, size, distance, spread = opencv_lenses.random_lens("bumpy", 8)
     data, _, _ = to_data(opencv_lenses.views_of(lens, size, 10, 8, 0.3, distance, spread))
     five = fit_opencv(data, size, OpenCVSettings(), no_progress)

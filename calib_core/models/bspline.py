@@ -43,7 +43,7 @@ from .base import CameraModel, Prior, intrinsics_jacobian
 from .bspline_basis import BSplineField
 
 GAUGE_WEIGHT = 1e4  # constraint rows are multiplied by this: violations ~1e-8 px
-ANGULAR_HELD = (2, 3, 4)  # cx, cy, skew: held on an angular base (module text)
+ANGULAR_HELD = {"cx": 2, "cy": 3, "skew": 4}  # held on an angular base (module text): name → parameter index
 
 
 def gauge_rows(field: BSplineField, point: tuple[float, float]) -> sp.csr_matrix:
@@ -132,7 +132,7 @@ class BSplineModel(CameraModel):
         if not self.hold_centre:
             return None
         free = np.ones(self.n_params, dtype=bool)
-        free[list(ANGULAR_HELD)] = False
+        free[list(ANGULAR_HELD.values())] = False
         return free
 
     def params(self) -> np.ndarray:
@@ -209,7 +209,7 @@ class BSplineModel(CameraModel):
             "gauge": {
                 "type": "field value and gradient zero at a fixed ideal pixel",
                 "point": list(self.gauge_point) if self.gauge_point else None,
-                "held": ["cx", "cy", "skew"] if self.hold_centre else [],
+                "held": list(ANGULAR_HELD) if self.hold_centre else [],
             },
             "prior_field": "initial Kannala-Brandt camera" if self.prior_control is not None else "zero",
         }

@@ -6,6 +6,7 @@ import pytest
 
 from calib_core import Calibration
 from calib_core.evaluation.evaluate import evaluate
+from calib_core.evaluation.parameters import parameter_table
 from calib_core.pipeline import calibrate
 from calib_core.synth.opencv_lenses import fisheye_lens, views_of
 
@@ -61,8 +62,6 @@ def test_on_an_angular_base_the_principal_point_and_skew_are_held_and_said_so():
     """A field on an angular base follows a turn of the whole camera; free, the principal point walks
     along that valley (BabelCalib: 60 px in 59 iterations). It is held at the initial camera's, as mrcal
     holds its splined model's core; on the pinhole base it stays free."""
-    from calib_core.evaluation.parameters import parameter_table
-
     wide = calibrate(synthetic("fisheye").train, "bspline", intervals=8, lambda_smooth=10.0)
     assert wide.settings["base_used"] != "pinhole" and wide.settings["gauge"]["held"] == ["cx", "cy", "skew"]
     np.testing.assert_allclose(wide.model.intrinsics[2:4], wide.settings["gauge"]["point"])  # the initial camera's

@@ -40,7 +40,7 @@ from calib_core.board import BoardSpec
 from calib_core.detection import corner_refine
 from calib_core.detection.corner_error import corner_errors, same_id_errors
 from calib_core.detection.detect import detect_images, image_paths
-from calib_core.detection.detect_image import CLASSIC_FLAGS, SUBPIX, read_gray
+from calib_core.detection.detect_image import SUBPIX, read_gray
 from calib_core.detection.grow import lattice_steps
 from calib_core.observations import Observations, View
 from calib_core.synth import render
@@ -54,6 +54,10 @@ SETS = {  # name → board spec
 }
 
 
+# What the usual loop passes: OpenCV's default flags for findChessboardCorners.
+PLAIN_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+
+
 def plain_opencv(files: list[Path], board: BoardSpec) -> tuple[Observations | None, float]:
     """The usual per-image loop; (corners found, seconds)."""
     t0 = time.perf_counter()
@@ -65,7 +69,7 @@ def plain_opencv(files: list[Path], board: BoardSpec) -> tuple[Observations | No
             continue
         size = (gray.shape[1], gray.shape[0])
         if board.type == "chessboard":
-            ok, c = cv2.findChessboardCorners(gray, (board.cols, board.rows), flags=CLASSIC_FLAGS)
+            ok, c = cv2.findChessboardCorners(gray, (board.cols, board.rows), flags=PLAIN_FLAGS)
             if not ok:
                 continue
             c = cv2.cornerSubPix(gray, c.reshape(-1, 1, 2).astype(np.float32), (11, 11), (-1, -1), SUBPIX)

@@ -234,17 +234,25 @@ def _chessboard(gray: np.ndarray, board: BoardSpec, classic_first: bool = True):
         grid = corners.reshape(rows, cols, 2)
     if grid is None:
         grid = _grown_grid(gray, cols, rows)
-    if grid is None:
+    placed = None if grid is None else place_grid(grid.astype(np.float64), cols, rows, gray)
+    if placed is None:
+        # No grid, or a grown one the board cannot hold: a seed can grow over the board's
+        # edge, where the outer squares meet the background in corners of their own (a
+        # white-on-black board, a dark margin); the whole pattern's search stops at the board.
         ok, corners, meta = cv2.findChessboardCornersSBWithMeta(gray, (cols, rows), SB_FLAGS)
         if ok and meta is not None and meta.size == corners.shape[0]:
-            grid = corners.reshape(*meta.shape, 2)
+            whole = corners.reshape(*meta.shape, 2)
+            placed = place_grid(whole.astype(np.float64), cols, rows, gray)
+            grid = whole if placed is not None or grid is None else grid
     if grid is None:
         return None, None, None, "board not found"
-    placed = place_grid(grid.astype(np.float64), cols, rows, gray)
     if placed is None:
         h, w = grid.shape[:2]
+        sr, sc = gap_strides(grid.astype(np.float64), gray)
+        if (sr > 0).all() and (sc > 0).all():  # on the board's lattice: a grid that skips lines, filled in
+            h, w = int(sr.sum()) + 1, int(sc.sum()) + 1
         seen = f"board not found: the corner grid seen ({w} × {h})"
-        if max(h, w) > max(cols, rows) or min(h, w) > min(cols, rows):
+        if not _fits((h, w), cols, rows):
             return None, None, None, f"{seen} does not fit a {cols} × {rows} board; is the board's size right (inner corners)?"
         # It fits the board: what failed is reading its squares as black and white
         return None, None, None, (f"{seen} fits the board, but its squares do not read as a chessboard's black and "
@@ -259,8 +267,10 @@ def _grown_grid(gray: np.ndarray, cols: int, rows: int) -> np.ndarray | None:
     The grown grid depends on the seed size, and some seeds grow a grid that is not the
     board's lattice (rows skipping a varying number of board lines, or an axis running
     diagonally; seen on rendered views with exact corners). The next seed is tried until
-    the grid, expanded to one square per cell, reads as a chessboard (``lattice_score``);
-    if none does, the board is not found rather than given wrong ids.
+    the grid, expanded to one square per cell, reads as a chessboard (``lattice_score``)
+    and the board can hold it (a grid that skips every other line can expand past the
+    board: 9 rows of an 8-row board); if none does, the board is not found rather than
+    given wrong ids.
     """
     for n in SEEDS:
         seed = (min(n, cols), min(n, rows))
@@ -272,9 +282,16 @@ def _grown_grid(gray: np.ndarray, cols: int, rows: int) -> np.ndarray | None:
         sr, sc = gap_strides(grid, gray)
         if (sr == 0).any() or (sc == 0).any():
             continue
-        if lattice_score(expand(grid, sr, sc)[0], gray) >= MIN_LATTICE_SCORE:
+        full = expand(grid, sr, sc)[0]
+        if _fits(full.shape[:2], cols, rows) and lattice_score(full, gray) >= MIN_LATTICE_SCORE:
             return grid
     return None
+
+
+def _fits(shape: tuple[int, ...], cols: int, rows: int) -> bool:
+    """Does a lattice of shape (h, w) corners fit a cols × rows board, in some quarter turn?"""
+    h, w = shape
+    return (h <= rows and w <= cols) or (h <= cols and w <= rows)
 
 
 def _edge_width(gray: np.ndarray, grid: np.ndarray) -> float | None:

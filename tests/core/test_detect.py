@@ -10,7 +10,7 @@ import pytest
 
 from backend.cli import main as cli
 from calib_core.board import BoardSpec
-from calib_core.detection import detect
+from calib_core.detection import detect, detect_image
 from calib_core.detection.detect import detect_images
 from calib_core.detection.grid import expand, gap_strides, lattice_score, place_grid, right_handed
 from calib_core.errors import DataError
@@ -218,3 +218,38 @@ def test_grids_that_skip_or_shear_board_lines_are_read_as_such():
     sheared = full[:3, :3].copy()
     sheared[1:] = full[1:3, 1:4]                       # rows shifted by one column: a diagonal axis
     assert lattice_score(sheared, img) < 0.8
+
+
+def tilted_board(cols: int, rows: int, invert: bool, sq: int = 80) -> tuple[np.ndarray, np.ndarray]:
+    """A 1280 × 960 photo of a chessboard on a one-square paper margin (white-on-black and
+    a black margin when ``invert``), 800 mm away, turned 35° about the vertical and rolled
+    10°; and its true corners (N, 2)."""
+    y, x = np.mgrid[0:(rows + 3) * sq, 0:(cols + 3) * sq]
+    i, j = x // sq - 1, y // sq - 1
+    on_squares = (i >= 0) & (i <= cols) & (j >= 0) & (j <= rows)
+    light, dark = (20.0, 235.0) if invert else (235.0, 20.0)
+    tex = np.where(on_squares, np.where((i + j) % 2 == 0, light, dark), dark if invert else light)
+    t, q = np.radians(35.0), np.radians(-10.0)
+    turn = np.array([[np.cos(t), 0, np.sin(t)], [0, 1, 0], [-np.sin(t), 0, np.cos(t)]])
+    rot = np.array([[np.cos(q), -np.sin(q), 0], [np.sin(q), np.cos(q), 0], [0, 0, 1]]) @ turn
+    mm = 25.0 / sq   # texels to mm
+    k = np.array([[1000.0, 0, 639.5], [0, 1000.0, 479.5], [0, 0, 1]])
+    centre = np.array([tex.shape[1], tex.shape[0], 0.0]) / 2
+    hom = k @ np.column_stack([rot[:, 0] * mm, rot[:, 1] * mm, rot @ (-centre * mm) + [0, 0, 800.0]])
+    img = cv2.warpPerspective(tex.astype(np.float32), hom, (1280, 960), flags=cv2.INTER_AREA, borderValue=128)
+    img = cv2.GaussianBlur(img, (0, 0), 0.8) + np.random.default_rng(0).normal(0, 2, img.shape)
+    corners = np.array([[(c + 2) * sq - 0.5, (r + 2) * sq - 0.5] for r in range(rows) for c in range(cols)])
+    truth = cv2.perspectiveTransform(corners.reshape(-1, 1, 2), hom).reshape(-1, 2)
+    return np.clip(img, 0, 255).astype(np.uint8), truth
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("invert", [False, True])
+def test_a_seed_grown_past_the_boards_edge_leaves_the_board_to_the_whole_pattern(invert):
+    # Without the classic detector (a target's boards, a fisheye's image circle), a seed grew
+    # over the board's edge onto the outer squares' corners against the margin: a grid one
+    # row or column larger than the board, and a whole, sharp board rejected as "does not fit".
+    img, truth = tilted_board(9, 6, invert)
+    res = detect_image.detect_gray(img, BoardSpec.parse("chessboard:9x6:25mm"), classic_first=False)
+    assert res.status == "used" and res.n_corners == 54
+    assert np.linalg.norm(res.points[:, None] - truth[None], axis=2).min(axis=1).max() < 0.2

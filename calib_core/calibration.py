@@ -157,6 +157,7 @@ class Calibration:
         if reader is None:
             raise FormatError(f"distortion.type: unknown type {dist['type']!r}; known: {sorted(MODEL_TYPES)}")
         model = reader.from_json(intrinsics, dist, base).restored(doc.get("settings", {}))
+        _support_within(model, (image_size[0], image_size[1]))
         views = []
         for k, v in enumerate(doc.get("views", [])):
             try:
@@ -202,6 +203,21 @@ def _finite(x: int | float) -> bool:
         return math.isfinite(x)
     except OverflowError:  # an int past float64
         return False
+
+
+MAX_SUPPORT_DIAGONALS = 4  # an MLS field's reach: past the image's diagonal it adds nothing, and at 1e300 exports hang
+
+
+def _support_within(model: CameraModel, image_size: tuple[int, int]) -> None:
+    """An MLS field's ``support`` (pixels) is at most a few image diagonals."""
+    from .models.mls import MLSField
+
+    field = getattr(model, "field", None)
+    if isinstance(field, MLSField):
+        most = MAX_SUPPORT_DIAGONALS * math.hypot(*image_size)
+        if not field.support <= most:
+            raise FormatError(f"distortion.support: expected a positive number of pixels at most {most:.0f} "
+                              f"({MAX_SUPPORT_DIAGONALS} image diagonals), got {field.support:g}")
 
 
 def _float(x) -> float:

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import json
 import math
+import re
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,6 +20,8 @@ from .errors import FormatError
 Circle = tuple[float, float, float]  # a lens's image circle: cx, cy, radius in pixels
 
 FORMAT = "freecal.observations/1"
+# Board coordinates past this (1000 km in mm) are a wrong value, and at 1e150 the solver's SVD fails to converge.
+MAX_OBJECT_COORDINATE = 1e9
 
 
 @dataclass
@@ -150,12 +154,85 @@ def read_json(path: str | Path) -> Any:
     return parse_json(text, str(path))
 
 
+# The deepest freecal document nests 5 levels (document > views > view > points > point); every
+# walk after parsing (checks, messages that quote a value) then stays far from Python's recursion limit.
+MAX_DEPTH = 32
+# The only way JSON text gives a lone surrogate: a \uD800-\uDFFF escape (UTF-8 decoding refuses encoded ones).
+SURROGATE_ESCAPE = re.compile(r"\\u[dD][89a-fA-F]")
+
+
 def parse_json(text: str, source: str) -> Any:
-    """JSON text from ``source`` (a file name, "standard input"), a FormatError naming it if it is not JSON."""
+    """JSON text from ``source`` (a file name, "standard input"), a FormatError naming it if it is not JSON,
+    nests more than ``MAX_DEPTH`` levels, has an integer Python will not convert, or text that is not Unicode."""
     try:
-        return json.loads(text)
+        doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise FormatError(f"{source}: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
+    except RecursionError:
+        doc = None
+        deep = True
+    except ValueError:  # an integer of more than sys.get_int_max_str_digits() digits
+        raise FormatError(f"{source}: a number is too long (over {sys.get_int_max_str_digits()} digits); no "
+                          "freecal field needs more than a few: check the program that wrote the file") from None
+    else:
+        deep = not depth_within(doc, MAX_DEPTH)
+    if deep:
+        raise FormatError(f"{source}: nests arrays and objects more than {MAX_DEPTH} levels deep: "
+                          "no freecal document needs that many; give the document itself")
+    bad = not_unicode(doc) if SURROGATE_ESCAPE.search(text) else None
+    if bad is not None:
+        raise FormatError(f"{source}: {bad or 'the document'}: not valid Unicode text (an unpaired surrogate "
+                          "escape such as \\ud800); other programs cannot read it either: fix the text")
+    return doc
+
+
+def depth_within(doc: Any, limit: int) -> bool:
+    """Whether ``doc`` nests at most ``limit`` levels (iterative: no recursion, whatever the depth)."""
+    stack = [(doc, 1)]
+    while stack:
+        value, depth = stack.pop()
+        if depth > limit:
+            return False
+        if not isinstance(value, (dict, list)):  # a document may be a bare null, number or string
+            continue
+        children = value.values() if isinstance(value, dict) else value
+        stack.extend([(c, depth + 1) for c in children if isinstance(c, (dict, list))])
+    return True
+
+
+def not_unicode(doc: Any) -> str | None:
+    """Where (``views[2].name``; "" for the document itself) the first string or key holding a lone
+    surrogate ("\\ud800": valid JSON, but no character; it cannot be printed, stored or sent as UTF-8)
+    is, or None, in the document's order. Iterative, like ``depth_within``; only non-ASCII text is
+    encoded to check."""
+    stack: list[tuple[Any, str]] = [(doc, "")]
+    while stack:
+        value, where = stack.pop()
+        if isinstance(value, str):
+            if not _valid(value):
+                return where
+            continue
+        if isinstance(value, dict):
+            bad_key = next((k for k in value if not _valid(k)), None)
+            if bad_key is not None:
+                return f"{where}.{bad_key.encode('utf-8', 'backslashreplace').decode()}".lstrip(".") + " (a key)"
+            children = [(v, f"{where}.{k}".lstrip(".")) for k, v in value.items()]
+        elif isinstance(value, list):
+            children = [(v, f"{where}[{i}]") for i, v in enumerate(value)]
+        else:
+            continue
+        stack.extend(reversed([c for c in children if isinstance(c[0], (str, dict, list))]))  # popped in order
+    return None
+
+
+def _valid(text: str) -> bool:
+    if text.isascii():
+        return True
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def json_text(doc: Any) -> str:
@@ -198,7 +275,12 @@ def _points(where: str, key: str, raw: Any, dim: int) -> np.ndarray:
             raise FormatError(f"{where}.{key}[{j}]: expected {what} numbers, got {p!r}")
         if not all(math.isfinite(x) for x in p):
             raise FormatError(f"{where}.{key}[{j}]: {p!r} is not finite (NaN or Inf)")
-    return np.asarray(raw, dtype=np.float64).reshape(-1, dim)
+    points = np.asarray(raw, dtype=np.float64).reshape(-1, dim)
+    if dim == 3 and len(points) and np.abs(points).max() > MAX_OBJECT_COORDINATE:
+        j = int(np.argmax(np.abs(points).max(axis=1)))
+        raise FormatError(f"{where}.{key}[{j}]: {raw[j]!r} is out of range: board coordinates are at most "
+                          f"{MAX_OBJECT_COORDINATE:g} board units from the origin (check the units: mm or m)")
+    return points
 
 
 def _inside(k: int, rv: Any, view: View, image_size: tuple[int, int]) -> None:

@@ -103,19 +103,32 @@ def settings_of(args) -> dict:
         raise SettingsError(f"{', '.join(given)} set the B-spline field: add --method bspline (--method {args.method} "
                             + ("chooses the model, knot grid and smoothing itself)" if args.method == "auto" else
                                "takes its settings with --set KEY=VALUE)"))
-    settings = {key: getattr(args, key) for _, key, _, _ in BSPLINE_FLAGS if getattr(args, key) is not None}
-    return {**settings, **set_settings(args.set)}
+    flags = {key: flag for flag, key, _, _ in BSPLINE_FLAGS if getattr(args, key) is not None}
+    settings = {key: getattr(args, key) for key in flags}
+    return {**settings, **set_settings(args.set, flags)}
 
 
-def set_settings(items: list[str]) -> dict:
-    """The method settings given as ``--set KEY=VALUE``."""
+def set_settings(items: list[str], flags: dict[str, str] | None = None) -> dict:
+    """The method settings given as ``--set KEY=VALUE``; a key set by its own flag (``flags``:
+    key → flag given; outlier_sigma always has one) is refused rather than one silently winning."""
+    flags = {"outlier_sigma": "--outlier-sigma", **(flags or {})}
     settings = {}
     for item in items:
         key, sep, value = item.partition("=")
         if not sep:
             raise SettingsError(f"--set {item!r}: expected KEY=VALUE")
+        if key.strip() in flags:
+            raise SettingsError(f"--set {item!r}: {key.strip()} has its own flag: give it as "
+                                f"{flags[key.strip()]} {value.strip()} instead")
+        if key.strip() in NOT_SETTINGS:
+            raise SettingsError(f"--set {item!r}: {key.strip()} is not a method setting; see the command's own "
+                                "flags (--help)")
         settings[key.strip()] = _value(value.strip())
     return settings
+
+
+# calibrate()'s and calibrate_rig()'s other parameters: a --set of one would pass it twice
+NOT_SETTINGS = {"observations", "method", "progress", "cameras", "reference", "refine_models"}
 
 
 def _value(text: str):

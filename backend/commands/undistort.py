@@ -83,7 +83,7 @@ def run(args) -> int:
         if args.maps or not args.images:
             written += save_maps(out, *maps, camera)
         for name in args.images:
-            image = cv2.imread(name, cv2.IMREAD_UNCHANGED)
+            image = _read_image(name)
             if image is None:
                 raise RectifyError(f"{name}: not an image OpenCV can read")
             target = out / Path(name).name
@@ -101,3 +101,22 @@ def run(args) -> int:
     for path in files:
         print(f"wrote {path}")
     return 0
+
+
+def _read_image(name: str):
+    """The image in ``name`` as it is (colour, bit depth), None if OpenCV cannot decode it; one that
+    declares more pixels than OpenCV may decode is refused in detect's words (read_gray's TooManyPixels)."""
+    import cv2
+
+    from calib_core.detection.detect_image import TooManyPixels, read_gray
+
+    try:
+        return cv2.imread(name, cv2.IMREAD_UNCHANGED)
+    except cv2.error as exc:
+        if "MAX_IMAGE" not in str(exc):
+            raise
+    try:
+        read_gray(name)  # refuses it from the header alone, with the limit and what to do
+    except TooManyPixels as exc:
+        raise RectifyError(f"{name}: {exc}") from None
+    raise RectifyError(f"{name}: more pixels than OpenCV may decode: downscale it")

@@ -8,6 +8,7 @@ Parameters: ``[fx, fy, cx, cy, k1 … kn]`` (skew fixed at 0, as in OpenCV).
 """
 from __future__ import annotations
 
+import math
 from typing import Any, Self
 
 import numpy as np
@@ -46,8 +47,9 @@ class FisheyeModel(ParametricModel):
     @classmethod
     def from_json(cls, intrinsics: np.ndarray, distortion: dict[str, Any], base: str) -> Self:
         coeffs = distortion.get("coefficients")
-        if not isinstance(coeffs, list) or not coeffs:
-            raise FormatError("distortion.coefficients: expected a non-empty list [k1, ..., kn]")
+        if not isinstance(coeffs, list) or not coeffs or not all(  # NaN or Inf: every pixel would be NaN
+                isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in coeffs):
+            raise FormatError("distortion.coefficients: expected a non-empty list of finite numbers [k1, ..., kn]")
         if base != "pinhole":
             raise FormatError("base: the fisheye distortion type is defined on the pinhole base only")
         return cls(intrinsics, coeffs)

@@ -15,6 +15,7 @@ Parameters: ``[fx, fy, cx, cy, coefficients…]``.
 """
 from __future__ import annotations
 
+import math
 from typing import Any, Self
 
 import numpy as np
@@ -181,9 +182,9 @@ class OpenCVModel(ParametricModel):
     def from_json(cls, intrinsics: np.ndarray, distortion: dict[str, Any], base: str) -> Self:
         coeffs = distortion.get("coefficients")
         if not isinstance(coeffs, list) or len(coeffs) not in ALLOWED_COUNTS or not all(
-            isinstance(c, (int, float)) and not isinstance(c, bool) for c in coeffs
-        ):
-            raise FormatError("distortion.coefficients: expected 4, 5, 8, 12 or 14 numbers "
+            isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in coeffs
+        ):  # NaN or Inf: every pixel would be NaN
+            raise FormatError("distortion.coefficients: expected 4, 5, 8, 12 or 14 finite numbers "
                               "[k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4, tx, ty] (a prefix)")
         if base != "pinhole":
             raise FormatError("base: the opencv distortion type is defined on the pinhole base only")

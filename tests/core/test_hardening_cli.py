@@ -3,6 +3,7 @@ do, no traceback, and no output file (not even half of one)."""
 from __future__ import annotations
 
 import json
+import zlib
 
 import cv2
 import pytest
@@ -61,6 +62,28 @@ CASES = {  # name: (files to write {name: content}, argv with {dir}, words in th
                                        ["square size", "from 0.001 mm to 10 m"]),
     "detect: no images in the folder": ({"notes.txt": "hi"}, ["detect", "{dir}", "--board", "chessboard:6x4:20mm"],
                                         ["no images"]),
+    "JSON nested 100 000 deep": ({"a.json": "[" * 100_000 + "]" * 100_000}, ["calibrate", "{dir}/a.json"],
+                                 ["a.json", "more than 32 levels deep"]),
+    "JSON nested 40 deep": ({"a.json": obs(board=json.loads('{"a": ' * 40 + "1" + "}" * 40))},
+                            ["calibrate", "{dir}/a.json"], ["more than 32 levels deep"]),
+    "a 5000-digit number": ({"a.json": json.dumps(obs()).replace('"image_size": [', '"image_size": [' + "9" * 5000, 1)},
+                            ["calibrate", "{dir}/a.json"], ["a.json", "number is too long"]),
+    "a view named with a lone surrogate": ({"a.json": obs(views=[{**v, "name": v["name"] + "\ud800x"}
+                                                                 for v in obs()["views"]])},
+                                           ["calibrate", "{dir}/a.json"], ["views[0].name", "not valid Unicode"]),
+    "--set of a setting with its own flag": ({"a.json": obs()}, ["calibrate", "{dir}/a.json", "--method", "zhang",
+                                                                 "--set", "outlier_sigma=3"], ["--outlier-sigma 3"]),
+    "--set and the flag of one setting": ({"a.json": obs()}, ["calibrate", "{dir}/a.json", "--method", "bspline",
+                                                              "--intervals", "4", "--set", "intervals=5"],
+                                          ["--intervals 5"]),
+    "--set of a parameter that is no setting": ({"a.json": obs()}, ["calibrate", "{dir}/a.json", "--set", "progress=1"],
+                                                ["not a method setting"]),
+    "rig: --set of a setting with its own flag": ({"a.json": obs(), "b.json": obs()},
+                                                  ["rig", "{dir}/a.json", "{dir}/b.json", "--set", "outlier_sigma=3"],
+                                                  ["--outlier-sigma 3"]),
+    "object points x1e100": ({"a.json": obs(views=[{**v, "object_points": [[c * 1e100 for c in p] for p in v["object_points"]]}
+                                                   for v in obs()["views"]])},
+                             ["calibrate", "{dir}/a.json", "--method", "zhang"], ["object_points", "out of range"]),
     "evaluate: a calibration that is not one": ({"c.json": {"format": "freecal.calibration/1", "image_size": [1, True]},
                                                  "a.json": obs()}, ["evaluate", "{dir}/c.json", "{dir}/a.json"],
                                                 ["image_size"]),
@@ -91,3 +114,55 @@ def test_cli_refuses_fronto_parallel_views(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "fronto-parallel" in err and "tilted" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "out.json").exists()
+
+
+@pytest.fixture(scope="module")
+def zhang_cal() -> dict:
+    from calib_core import calibrate
+
+    return calibrate(synthetic("radial").train, "zhang").to_json()
+
+
+def edited(cal: dict, **distortion) -> dict:
+    return {**cal, "distortion": {**cal["distortion"], **distortion}}
+
+
+CAL_CASES = {  # name: (the calibration edited, argv after the calibration file, words in the message)
+    "NaN in an opencv model's coefficients": (lambda c: edited(c, coefficients=[float("nan")] * 5), ["evaluate"],
+                                              ["distortion.coefficients", "finite"]),
+    "Inf in a fisheye model's coefficients": (lambda c: edited(c, type="fisheye", coefficients=[0.1, float("inf")]),
+                                              ["evaluate"], ["distortion.coefficients", "finite"]),
+    "an MLS support of 1e300": (lambda c: edited(c, type="mls", parametric=c["distortion"], samples=[[500.0, 600.0]],
+                                                 offsets_x=[0.0], offsets_y=[0.0], sigma=100.0, support=1e300),
+                                ["export", "--to", "mrcal"], ["distortion.support", "image diagonals"]),
+}
+
+
+@pytest.mark.parametrize("case", list(CAL_CASES))
+def test_cli_refuses_a_bad_calibration(tmp_path, capsys, zhang_cal, case):
+    edit, argv, words = CAL_CASES[case]
+    cal = write(tmp_path / "c.json", json.dumps(edit(zhang_cal)))  # json writes NaN and Infinity as a buggy exporter does
+    argv = [argv[0], cal, *argv[1:]]
+    if argv[0] == "evaluate":
+        argv.append(write(tmp_path / "a.json", obs()))
+    else:
+        argv += ["-o", str(tmp_path / "out")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert err.startswith(f"freecal {argv[0]}: error: ")
+    for w in words:
+        assert w in err, err
+
+
+def test_undistort_refuses_an_image_of_too_many_pixels(tmp_path, capsys, zhang_cal):
+    """A PNG whose header declares 40000x40000: refused in detect's words, not with OpenCV's assertion."""
+    small = cv2.imencode(".png", board_image(0))[1].tobytes()
+    ihdr = small[12:16] + (40000).to_bytes(4, "big") * 2 + small[24:29]  # IHDR: 40000x40000, past any limit
+    bomb = small[:12] + ihdr + zlib.crc32(ihdr).to_bytes(4, "big") + small[33:]
+    image = write(tmp_path / "bomb.png", bomb)
+    out = tmp_path / "out"
+    assert main(["undistort", write(tmp_path / "c.json", zhang_cal), image, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert "bomb.png" in err and "more pixels than the limit" in err and not out.exists()

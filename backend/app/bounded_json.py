@@ -10,6 +10,8 @@ quote a value) sees at most ``MAX_DEPTH`` levels.
 from __future__ import annotations
 
 import json
+import re
+import sys
 from collections.abc import Callable
 from typing import Any
 
@@ -17,23 +19,36 @@ from fastapi import HTTPException, Request
 from fastapi.routing import APIRoute
 from starlette.concurrency import run_in_threadpool
 
+from calib_core.observations import MAX_DEPTH, SURROGATE_ESCAPE, depth_within, not_unicode
+
 from .errors import ApiError
 
-# The deepest documents the API takes are observations (document > views > view >
-# points > point: 5 levels) and job settings (body > settings > interior_knots > axis: 4).
-MAX_DEPTH = 32
+# The core's bounds on a JSON document (job settings nest 4 levels: body > settings > interior_knots > axis),
+# and its lone-surrogate escape, searched for in a body's bytes before the document is walked for one
+SURROGATE_ESCAPE_BYTES = re.compile(SURROGATE_ESCAPE.pattern.encode())
 
 
 def parse(raw: bytes | str, what: str) -> Any:
-    """The JSON value in ``raw``, or ApiError 422 naming ``what`` when it is not JSON or nests too deep."""
+    """The JSON value in ``raw``, or ApiError 422 naming ``what`` when it is not JSON, nests too deep
+    or holds text that is not valid Unicode."""
     try:
         doc = json.loads(raw, object_pairs_hook=_object)
     except RecursionError:
-        doc = None
+        pass
     except (ValueError, UnicodeDecodeError) as exc:
-        raise ApiError(422, f"{what} is not valid JSON ({exc}): send a JSON document (see /docs)") from None
+        reason = str(exc)
+        if "int_max_str_digits" in reason:  # Python's own advice (sys.set_int_max_str_digits) means nothing here
+            reason = f"a number has more than {sys.get_int_max_str_digits()} digits"
+        raise ApiError(422, f"{what} is not valid JSON ({reason}): send a JSON document (see /docs)") from None
     else:
-        if _depth_within(doc, MAX_DEPTH):
+        if depth_within(doc, MAX_DEPTH):
+            # a large body is walked only if it may hold one
+            may = (SURROGATE_ESCAPE if isinstance(raw, str) else SURROGATE_ESCAPE_BYTES).search(raw)  # type: ignore[arg-type]
+            bad = not_unicode(doc) if may else None
+            if bad is not None:
+                # "\ud800" is valid JSON but no character: it cannot be stored, shown or answered (UTF-8)
+                raise ApiError(422, f"{what}: {bad or 'the document'} holds text that is not valid Unicode (a lone "
+                                    "surrogate escape such as \\ud800): send the text as UTF-8")
             return doc
     raise ApiError(422, f"{what} nests arrays and objects more than {MAX_DEPTH} levels deep: "
                         "no freecal document needs that many; send the document itself")
@@ -44,18 +59,6 @@ def _object(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     # interpreter can hand the GIL to the event loop. Without it one C call holds the GIL for
     # the whole body (a second per 20 MB), and a thread would not keep /api/health fast.
     return dict(pairs)
-
-
-def _depth_within(doc: Any, limit: int) -> bool:
-    """Whether ``doc`` nests at most ``limit`` levels (iterative: no recursion, whatever the depth)."""
-    stack = [(doc, 1)]
-    while stack:
-        value, depth = stack.pop()
-        if depth > limit:
-            return False
-        children = value.values() if isinstance(value, dict) else value
-        stack.extend([(c, depth + 1) for c in children if isinstance(c, (dict, list))])
-    return True
 
 
 class BoundedJSONRoute(APIRoute):

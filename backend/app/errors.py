@@ -46,7 +46,10 @@ def install(app: FastAPI) -> None:
         parts = []
         for err in exc.errors():
             where = ".".join(str(p) for p in err.get("loc", ()) if p not in ("body", *JOB_KINDS))  # a union's tags
-            parts.append(f"{where}: {err.get('msg')}" if where else str(err.get("msg")))
+            msg = str(err.get("msg"))
+            if "Expected UploadFile" in msg:  # a form field where a file belongs: FastAPI names Python classes
+                msg = "expected a file, got a text field: send each file as a file part (curl -F 'files=@photo.png')"
+            parts.append(f"{where}: {msg}" if where else msg)
         return JSONResponse({"detail": "invalid request: " + "; ".join(parts) + " (see /docs for the schema)"},
                             status_code=422)
 

@@ -12,6 +12,7 @@ Two places see them, depending on how the bytes arrive:
 from __future__ import annotations
 
 import json
+import os
 import sys
 
 import h11
@@ -55,4 +56,8 @@ class H11With431(H11Protocol):
 
 def uvicorn_options() -> dict:
     """uvicorn.run / uvicorn.Config keyword arguments of `freecal serve` (the tests' servers use them too)."""
-    return {"http": H11With431, "h11_max_incomplete_event_size": MAX_HEADER_BYTES, "log_level": "warning"}
+    # X-Forwarded-For is believed only when FORWARDED_ALLOW_IPS (uvicorn's setting) names the proxy: by
+    # default uvicorn believes any loopback client, whose forged header would escape the per-client job quota
+    trusted_proxy = bool(os.environ.get("FORWARDED_ALLOW_IPS", "").strip())
+    return {"http": H11With431, "h11_max_incomplete_event_size": MAX_HEADER_BYTES, "log_level": "warning",
+            "proxy_headers": trusted_proxy}

@@ -5,13 +5,15 @@ multipart upload, spooled to disk; a JSON document, into memory) before any
 handler or dependency runs. A declared Content-Length over the limit is
 refused before reading a byte; a body without one (``Transfer-Encoding:
 chunked``) is counted as it arrives and refused the moment it passes the limit,
-so at most the limit is ever read, spooled or parsed.
+so at most the limit is ever read, spooled or parsed. A body that stalls is
+answered 408 after ``BODY_IDLE_SECONDS`` of silence.
 
 Each path has its limit: uploads (POST /api/sets) take FREECAL_MAX_UPLOAD_BYTES,
 every other body (JSON: a job with inline observations) FREECAL_MAX_OBSERVATIONS_BYTES.
 """
 from __future__ import annotations
 
+import asyncio
 import json
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
@@ -33,8 +35,13 @@ class Limit:
         return self.max_bytes + self.slack
 
 
+# A body that stops arriving for this long is answered 408 and its connection closed: uvicorn itself
+# waits for a stalled body forever (slowloris). Counted per read, so a slow upload that moves is fine.
+BODY_IDLE_SECONDS = 30
+
+
 class _TooLarge(Exception):
-    """The body went past its limit while being read."""
+    """The body went past its limit (or stopped arriving) while being read."""
 
 
 class BodyLimit:
@@ -50,12 +57,19 @@ class BodyLimit:
         if length.isdigit() and int(length) > limit.bytes_allowed:
             await _refuse(send, limit, f"request body of {int(length)} bytes")
             return
-        received, refused, started = 0, False, False
+        received, refused, started, stalled, whole = 0, False, False, False, False
 
         async def counted() -> Message:
-            nonlocal received, refused
-            message = await receive()
+            nonlocal received, refused, stalled, whole
+            if whole:  # the body is in: later reads wait for a disconnect (streamed answers), unbounded
+                return await receive()
+            try:
+                message = await asyncio.wait_for(receive(), BODY_IDLE_SECONDS)
+            except TimeoutError:
+                stalled = refused = True
+                raise _TooLarge from None
             if message["type"] == "http.request":
+                whole = not message.get("more_body", False)
                 received += len(message.get("body", b""))
                 if received > limit.bytes_allowed:
                     refused = True
@@ -74,13 +88,20 @@ class BodyLimit:
         except Exception:
             if not refused:
                 raise
-        if refused and not started:
+        if stalled and not started:
+            await _answer(send, 408, f"the request body stopped arriving (nothing for {BODY_IDLE_SECONDS} s, "
+                                     f"{received} bytes in): send the whole body at once, then retry")
+        elif refused and not started:
             await _refuse(send, limit, f"request body of more than {limit.bytes_allowed} bytes")
 
 
 async def _refuse(send: Callable, limit: Limit, what: str) -> None:
-    body = json.dumps({"detail": f"{what} is over the limit of {limit.max_bytes} bytes: {limit.advice}"}).encode()
-    await send({"type": "http.response.start", "status": 413,
+    await _answer(send, 413, f"{what} is over the limit of {limit.max_bytes} bytes: {limit.advice}")
+
+
+async def _answer(send: Callable, status: int, detail: str) -> None:
+    body = json.dumps({"detail": detail}).encode()
+    await send({"type": "http.response.start", "status": status,
                 "headers": [(b"content-type", b"application/json"),
                             (b"content-length", str(len(body)).encode()),
                             (b"connection", b"close")]})  # the rest of the body is never read

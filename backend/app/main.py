@@ -8,11 +8,13 @@ beside it, ``freecal worker`` starts more). Static pages (frontend/) and the
 """
 from __future__ import annotations
 
+import json
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI
+from fastapi.responses import JSONResponse
 
 from ..base.context import Context
 from ..base.settings import Settings
@@ -71,6 +73,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                     "download results. Errors answer 4xx with a message saying what to do.",
         lifespan=lifespan,
         docs_url=None, redoc_url=None,  # /docs is served locally by install_docs (no CDN)
+        default_response_class=SafeJSONResponse,
     )
     app.state.settings = settings
     app.state.quota = ClientQuota(settings.max_jobs_per_client)
@@ -90,6 +93,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     proxy.install(app)  # /viewer: the 3D view behind the same token
     frontend.mount(app)  # last: the page at / never shadows /api or /docs
     return app
+
+
+class SafeJSONResponse(JSONResponse):
+    """JSON whose text is escaped (\\ud800) when it cannot be UTF-8: a string stored before input was checked
+    for lone surrogates must never make a read or a listing fail for everyone."""
+
+    def render(self, content) -> bytes:
+        try:
+            return super().render(content)
+        except UnicodeEncodeError:
+            return json.dumps(content, ensure_ascii=True, allow_nan=False, separators=(",", ":")).encode()
 
 
 def body_limits(settings: Settings) -> dict:

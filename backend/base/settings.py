@@ -64,6 +64,8 @@ class Settings:
     allowed_hosts: str = ""
     # Jobs (detections and calibrations) one client IP may have queued or running at once (429 beyond).
     max_jobs_per_client: int = 20
+    # Sets the server keeps at once (507 beyond): with max_upload_bytes, a bound on its storage.
+    max_sets: int = 1000
     # Cameras one rig job may calibrate together (POST /api/jobs with kind "rig"; 422 beyond):
     # each is a calibration of its own, then one joint fit of every camera's corners.
     max_rig_cameras: int = 8
@@ -101,7 +103,7 @@ class Settings:
         settings = replace(cls(**values), **{k: v for k, v in overrides.items() if v is not None})
         if settings.workers < 0:
             raise SystemExit(f"FREECAL_WORKERS={settings.workers}: expected 0 or more")
-        for name in ("max_upload_bytes", "max_files", "max_image_pixels", "max_jobs_per_client"):
+        for name in ("max_upload_bytes", "max_files", "max_image_pixels", "max_jobs_per_client", "max_sets"):
             if getattr(settings, name) < 1:
                 raise SystemExit(f"FREECAL_{name.upper()}={getattr(settings, name)}: expected a positive number")
         if settings.max_rig_cameras < 2:

@@ -77,6 +77,10 @@ def download(ctx: ContextDep, job_id: str, name: str) -> FileResponse:
         raise ApiError(404, f"job {job_id} has no {name!r}: {why}")
     if name not in job["artefacts"]:
         raise ApiError(404, f"job {job_id} has no {name!r}; it has: {', '.join(job['artefacts'])}")
+    path = ctx.storage.job_dir(job_id) / name
+    if not path.is_file():  # a detection's corners are its set's file; FileResponse would fail with a 500
+        where = f": its set's corners are at /api/sets/{job['set_id']}/{name}" if job["kind"] == "detect" else ""
+        raise ApiError(404, f"job {job_id} has no {name!r} to download{where}")
     suffix = name[name.rfind("."):]
-    return FileResponse(ctx.storage.job_dir(job_id) / name, media_type=MEDIA.get(suffix, "application/octet-stream"),
+    return FileResponse(path, media_type=MEDIA.get(suffix, "application/octet-stream"),
                         filename=f"freecal-job-{job_id}-{name}")

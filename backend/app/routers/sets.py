@@ -9,6 +9,7 @@ from starlette.concurrency import run_in_threadpool
 
 from ...base.repository import jobs as job_rows
 from ...base.repository import sets as set_rows
+from ..bounded_json import BoundedJSONRoute
 from ..deps import ContextDep, QueueDep
 from ..errors import ApiError
 from ..presenters import set_public
@@ -17,9 +18,10 @@ from ..security import QuotaDep, client_of
 from ..services import sets as service
 from ..uploads import Upload
 
-router = APIRouter(prefix="/api/sets", tags=["sets"])
+# BoundedJSONRoute: a JSON body (detect again) is checked as /api/jobs's are; uploads are multipart, untouched
+router = APIRouter(prefix="/api/sets", tags=["sets"], route_class=BoundedJSONRoute)
 ERRORS: dict[int | str, dict[str, Any]] = {404: {"model": Message}, 409: {"model": Message}, 503: {"model": Message}, 413: {"model": Message},
-          415: {"model": Message}, 422: {"model": Message}, 429: {"model": Message}}
+          415: {"model": Message}, 422: {"model": Message}, 429: {"model": Message}, 507: {"model": Message}}
 
 
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=SetPublic, responses=ERRORS)
@@ -33,6 +35,7 @@ async def create_set(
     """Store the files and queue corner detection (images); a corners JSON is ready at once."""
     uploads = [Upload(f.filename or "file", f.file) for f in files]
     await run_in_threadpool(quota.check, ctx, client_of(request))  # a set's detection is a job too
+    await run_in_threadpool(service.check_room, ctx, ctx.settings.max_sets)  # 507 past FREECAL_MAX_SETS
     set_id = await run_in_threadpool(service.create, ctx, queue, uploads, board, name)
     detection = job_rows.latest_detection(ctx.db, set_id)
     quota.add(client_of(request), detection["id"] if detection else None)

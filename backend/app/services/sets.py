@@ -52,6 +52,14 @@ def create(ctx: Context, queue: Queue, files: list[uploads.Upload], board_spec: 
     return set_id
 
 
+def check_room(ctx: Context, limit: int) -> None:
+    """507 once the server holds ``limit`` sets: uploads stop before the disk fills, with what to do."""
+    n = sets.count(ctx.db)
+    if n >= limit:
+        raise ApiError(507, f"the server holds {n} sets, its limit (FREECAL_MAX_SETS={limit}): delete sets you no "
+                            "longer need (DELETE /api/sets/{id}, or from the page) and upload again")
+
+
 def start_detection(ctx: Context, queue: Queue, set_id: str, board: Any, undo_set: bool = False) -> str:
     """Queue a detection of the set's images with ``board``; the set's state follows its latest detection."""
     job_id = new_id()

@@ -50,6 +50,11 @@ def list_all(db: Database) -> list[dict[str, Any]]:
     return [_decode(r) for r in rows]
 
 
+def count(db: Database) -> int:
+    with db.connect() as con:
+        return int(con.execute("SELECT COUNT(*) FROM sets").fetchone()[0])
+
+
 def record_reports(db: Database, set_id: str, reports: list[dict[str, Any]]) -> None:
     """Store detection reports as they become known (one call per batch of images)."""
     with db.transaction() as con:

@@ -61,7 +61,8 @@ def detect(gray: np.ndarray, board: BoardSpec, markers: Markers | None = None):
     corners, tags = corners[once], tags[once]     # a tag id seen twice: a stray tag, neither is trusted
     keep, wrong = layout_check(board, corners, tags - board.first_marker)
     if wrong:
-        return None, None, wrong_layout_reason(f"{len(tags)} tags", f"{board.cols} × {board.rows} AprilGrid", "tags")
+        return None, None, (wrong_layout_reason(f"{len(tags)} tags", f"{board.cols} × {board.rows} AprilGrid", "tags")
+                            + " and its spacing ratio")
     corners, tags = corners[keep], tags[keep]      # a misread tag goes alone
     ids = corner_ids(tags - board.first_marker, board.cols).reshape(-1)
     raw = corners.reshape(-1, 2).astype(np.float64)
@@ -75,6 +76,14 @@ def detect(gray: np.ndarray, board: BoardSpec, markers: Markers | None = None):
     keep = (det < 0) & sure & (np.linalg.norm(pts - raw, axis=1) <= 0.5 + MAX_SHIFT_SHARE * np.repeat(edge, 4)[inside])
     if not keep.any():
         return None, None, f"too few corners (0 of {len(raw)} tag corners confirmed)"
+    refined = np.full((len(tags) * 4, 2), np.nan)
+    refined[np.flatnonzero(inside)[keep]] = pts[keep]
+    whole = np.all(np.isfinite(refined.reshape(-1, 4, 2)), axis=(1, 2))
+    gap = spacing_seen(board, tags[whole] - board.first_marker, refined.reshape(-1, 4, 2)[whole])
+    if abs(gap - float(board.tag_spacing or 0.0)) > SPACING_TOLERANCE:  # NaN (too few pairs): not judged
+        return None, None, (f"board not found: its tags are {gap:.2f} of a tag apart, the board's spec says "
+                            f"{board.tag_spacing:g}: check the spacing ratio (the spec's fourth field, Kalibr's "
+                            "tagSpacing)")
     return ids[keep], pts[keep], ""
 
 
@@ -82,14 +91,18 @@ def detect(gray: np.ndarray, board: BoardSpec, markers: Markers | None = None):
 # spacing away) within this share of the neighbour's size; measured on 1 428 pairs of rendered
 # random grids: 0.25 at most, 0.02 at the median. A grid of another width puts them a tag away.
 AGREE = 0.35
+MIN_PAIRS = 4  # pairs of neighbouring tags that measure the gap between tags
+# The gap between tags the refined corners show, against the spec's, in tag edges: on 94 random
+# grids through the six synthetic lenses (benchmarks boards' draws) within 0.010 of the spec, and
+# at least 0.040 off for a spec 0.05 wrong. A wrong spacing (0.2 for a 0.3 print) otherwise
+# calibrated at 2-5 px.
+SPACING_TOLERANCE = 0.025
 
 
 def layout_check(board: BoardSpec, corners: np.ndarray, tags: np.ndarray) -> tuple[np.ndarray, bool]:
     """(keep (T,), wrong layout) of decoded tags (pixels (T, 4, 2), indices from the board's
     first) (``markers.layout_verdict``), each pair two tags side by side on the board."""
-    obj = board.object_points(corner_ids(tags, board.cols).reshape(-1))[:, :2].reshape(len(tags), 4, 2)
-    row, col = tags // board.cols, tags % board.cols
-    first, second = np.nonzero(np.abs(row[:, None] - row[None]) + np.abs(col[:, None] - col[None]) == 1)
+    obj, first, second = _side_by_side(board, tags)
     px = corners.astype(np.float64)
     h = homographies(obj[first], px[first])
     q = np.einsum("pij,pkj->pki", h, np.concatenate([obj[second], np.ones((len(second), 4, 1))], axis=2))
@@ -99,3 +112,31 @@ def layout_check(board: BoardSpec, corners: np.ndarray, tags: np.ndarray) -> tup
     size = np.sqrt(np.abs(0.5 * np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1)))
     agree = np.take_along_axis(miss, nearest, axis=1).mean(axis=1) < AGREE * size
     return layout_verdict(first, second, agree, len(tags))
+
+
+def _side_by_side(board: BoardSpec, tags: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Board points (T, 4, 2) of OpenCV's corners of ``tags`` (T,), and the pairs (first, second)
+    of tags side by side on the board."""
+    obj = board.object_points(corner_ids(tags, board.cols).reshape(-1))[:, :2].reshape(len(tags), 4, 2)
+    row, col = tags // board.cols, tags % board.cols
+    first, second = np.nonzero(np.abs(row[:, None] - row[None]) + np.abs(col[:, None] - col[None]) == 1)
+    return obj, first, second
+
+
+def spacing_seen(board: BoardSpec, tags: np.ndarray, px: np.ndarray) -> float:
+    """The gap between neighbouring tags, in tag edges, that the image shows, from tags whose
+    four refined corners ``px`` (T, 4, 2) were all found: each pair of tags side by side, the
+    second taken back onto the board through the first's homography, its two corners nearest
+    the first moved along the pair from where the spec puts them; the median move over the
+    pairs, added to the spec's spacing. NaN with fewer than MIN_PAIRS pairs."""
+    obj, first, second = _side_by_side(board, tags)
+    if len(first) < MIN_PAIRS:
+        return float("nan")
+    h = homographies(obj[first], px[first])
+    back = np.einsum("pij,pkj->pki", np.linalg.inv(h), np.concatenate([px[second], np.ones((len(second), 4, 1))], axis=2))
+    back = back[..., :2] / back[..., 2:]
+    along = obj[second].mean(axis=1) - obj[first].mean(axis=1)
+    along /= np.linalg.norm(along, axis=1, keepdims=True)
+    nearest = np.argsort(np.linalg.norm(obj[second] - obj[first].mean(axis=1)[:, None], axis=-1), axis=1)[:, :2]
+    moved = np.einsum("pkj,pj->pk", np.take_along_axis(back - obj[second], nearest[..., None], axis=1), along)
+    return float(float(board.tag_spacing or 0.0) + np.median(moved) / board.square_size)

@@ -92,3 +92,20 @@ def test_a_grid_of_another_width_is_named_as_such():
     assert first_rows.status == "used" and first_rows.ids is not None and first_rows.points is not None
     truth = synth.true_project("radial", r.apply(pts) + t)
     assert np.linalg.norm(first_rows.points - truth[first_rows.ids], axis=1).max() < 0.5
+
+
+@pytest.mark.parametrize("kind", ["radial", "fisheye"])
+def test_a_grid_given_another_spacing_is_named_as_such(kind):
+    """Tags printed 0.3 of a tag apart, read with a spec of 0.2 or 0.4: each tag's corners are
+    right, but every object point between tags would be off by a tenth of a tag (a calibration
+    at pixels, not tenths). The reason names the gap the image shows."""
+    spec = BoardSpec.parse("aprilgrid:6x6:40mm:0.3")
+    pts = spec.object_points(np.arange(spec.n_corners))
+    r = Rotation.from_rotvec(np.radians([10, -15, 5])) * Rotation.from_rotvec([np.pi, 0, 0])
+    t = np.array([0.0, 0.0, 300.0]) - r.apply(pts.mean(axis=0))
+    img = render_target.render_boards(kind, [(spec, np.concatenate([r.as_rotvec(), t]))])
+    assert detect_gray(img, spec).status == "used"
+    for spacing in ("0.2", "0.4", "0.27"):
+        res = detect_gray(img, BoardSpec.parse(f"aprilgrid:6x6:40mm:{spacing}"))
+        assert res.status == "rejected" and res.ids is None
+        assert f"its tags are 0.30 of a tag apart, the board's spec says {float(spacing):g}" in res.reason

@@ -207,7 +207,7 @@ class BoardSpec:
                 )
             cols, rows = _grid(spec, parts[1])
             name = parts[4].upper()
-            name = name if name.startswith("DICT_") else "DICT_" + name
+            name = _dictionary_name(name if name.startswith("DICT_") else "DICT_" + name)
             return cls("charuco", cols, rows, _length(spec, parts[2]), _length(spec, parts[3]), name, legacy)
         if kind == "aprilgrid":
             if len(parts) not in (4, 5):

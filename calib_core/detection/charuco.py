@@ -47,8 +47,10 @@ def detect(gray: np.ndarray, board: BoardSpec, markers: Markers):
     keep, wrong = layout_check(board, through, len(mine_ids))
     if wrong:
         legacy = " in OpenCV's legacy layout" if board.legacy else ""
+        layout = ("whether it is printed in OpenCV's current layout (the spec says legacy)" if board.legacy else
+                  "whether it is printed in OpenCV's legacy layout (add :legacy to the spec)")
         return None, None, (wrong_layout_reason(f"{len(mine_ids)} markers", f"{board.cols} × {board.rows} ChArUco board{legacy}",
-                                                "squares") + " and whether it is printed in OpenCV's legacy layout")
+                                                "squares") + " and " + layout)
     mine, mine_ids = mine[keep], mine_ids[keep]   # a misread marker goes alone
     detector = cv2.aruco.CharucoDetector(board.cv_charuco(), _NAMING)
     cv_pts, ids, _, _ = detector.detectBoard(gray, markerCorners=list(mine.reshape(-1, 1, 4, 2)),

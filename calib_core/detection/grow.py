@@ -179,10 +179,16 @@ class Lattice:
         each way, BabelCalib's) cannot follow OpenCV's colour convention when seen whole."""
         r, c = np.nonzero(self.known)
         points = self.p[r, c]
+        parity = self.parity
         if r.max() - r.min() + 1 > self.rows or c.max() - c.min() + 1 > self.cols:
-            r, c = c, r  # grown the other way round (``sizes``): the same corners, transposed ids
+            # Grown the other way round (``sizes``): the same corners a quarter turn round. Not
+            # transposed: that mirrors the board, which no pose can turn back (seen from its front,
+            # a board is never mirrored). The turn moves each corner's colour parity by k.
+            k = int(r.max() + r.min())
+            r, c = c, k - r
+            parity = (parity + k) % 2
         dr, dc = -r.min(), -c.min()
-        if (dr + dc + self.parity) % 2:
+        if (dr + dc + parity) % 2:
             if c.max() - c.min() + 1 < self.cols:
                 dc += 1
             elif r.max() - r.min() + 1 < self.rows:

@@ -75,7 +75,8 @@ def why_none(gray: np.ndarray, dictionary: str, border_bits: int = 1, first: int
     found = markers.all(dictionary, border_bits)[1] if markers is not None else detect(gray, dictionary, border_bits)[1]
     if count is not None and len(found) >= 3:   # (one or two: likely specks read as markers)
         return (f"no markers of this board (ids {first}-{first + count - 1} of {dictionary}); the image shows ids "
-                f"{_ids(found)}: another board, or check the board's first marker")
+                f"{_ids(found)}: another board, or one whose markers start at another id (give its first_marker in "
+                "a board or target file: docs/targets.md)")
     if len(detect(cv2.flip(gray, 1), dictionary, border_bits)[1]) >= 3:
         return (f"its {dictionary} markers read mirrored: the board is seen from behind (through the paper) or was "
                 "printed mirrored")

@@ -185,3 +185,39 @@ def test_a_partial_board_seeded_the_other_way_round_grows_over_all_of_it():
     truth = np.stack([true_ids[near] % cols, true_ids[near] // cols], 1)
     motion, shift = best_motion(ours, truth)  # the ids are right up to a motion of the lattice
     assert np.array_equal(ours @ motion.T + shift, truth)
+
+
+@pytest.mark.parametrize("parity", [0, 1])
+def test_a_lattice_grown_the_other_way_round_is_turned_not_mirrored(parity):
+    """A partial view's seed is placed one way round; growth can show it lies the other way
+    (8 rows of corners on a 9 x 6 board's 6-row side). Its ids then turn a quarter: a transpose
+    mirrored the board (seen: a probe's corner view, every corner left-handed), which no pose
+    of a board seen from the front can take back. The square colours stay where they were."""
+    rows, cols = 6, 9
+    p = np.full((3 * rows, 3 * cols, 2), np.nan)
+    r, c = np.mgrid[rows:rows + 8, cols:cols + 5]                  # 8 rows x 5 columns of corners
+    p[r, c] = np.stack([30.0 * c + 3.0 * r, 30.0 * r - 2.0 * c], -1)  # image x right, y down: right-handed
+    lat = Lattice(p, rows, cols, cols, rows, parity)
+    ids, pts = lat.placed()
+    assert ids.min() >= 0 and ids.max() < rows * cols and len(ids) == 40
+    at = dict(zip(ids.tolist(), pts, strict=True))
+    turns = [_turn(at[i + 1] - at[i], at[i + cols] - at[i]) for i in at if i + 1 in at and i + cols in at
+             and i % cols != cols - 1]
+    assert len(turns) > 20 and all(t > 0 for t in turns)            # board x cross board y: right-handed
+    # The colours: each corner's id parity against its square colours (``even``), one relation
+    # for every corner and the same as for a lattice placed without a turn (5 x 8, same parity).
+    upright = Lattice(np.full_like(p, np.nan), rows, cols, cols, rows, parity)
+    r, c = np.mgrid[rows:rows + 5, cols:cols + 8]
+    upright.p[r, c] = np.stack([30.0 * c, 30.0 * r], -1)
+    assert _colour_relation(lat, ids, pts, cols) == _colour_relation(upright, *upright.placed(), cols)
+
+
+def _turn(a: np.ndarray, b: np.ndarray) -> float:
+    """z of a × b for image vectors (x right, y down): positive when b is a right turn from a."""
+    return float(a[0] * b[1] - a[1] * b[0])
+
+
+def _colour_relation(lat: Lattice, ids: np.ndarray, pts: np.ndarray, cols: int) -> set[bool]:
+    """Whether each placed corner's square colours (``Lattice.even``) agree with its id's parity."""
+    even = {tuple(pt): e for pt, e in zip(lat.p[lat.known], lat.even()[lat.known], strict=True)}
+    return {bool(even[tuple(pt)] == ((i // cols + i % cols) % 2 == 0)) for i, pt in zip(ids, pts, strict=True)}

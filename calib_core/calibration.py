@@ -157,7 +157,7 @@ class Calibration:
         if reader is None:
             raise FormatError(f"distortion.type: unknown type {dist['type']!r}; known: {sorted(MODEL_TYPES)}")
         model = reader.from_json(intrinsics, dist, base).restored(doc.get("settings", {}))
-        _support_within(model, (image_size[0], image_size[1]))
+        _field_within(model, (image_size[0], image_size[1]))
         views = []
         for k, v in enumerate(doc.get("views", [])):
             try:
@@ -206,18 +206,33 @@ def _finite(x: int | float) -> bool:
 
 
 MAX_SUPPORT_DIAGONALS = 4  # an MLS field's reach: past the image's diagonal it adds nothing, and at 1e300 exports hang
+# A B-spline field's control values are pixel offsets. Bounded only where they stop being numbers a fit could
+# write (at 1e300 the evaluation overflows, FloatingPointError, and the exports' fits are singular): a field on a
+# base that does not suit the lens may bend far, and a calibration freecal wrote must read back (1e12 px: no error).
+MAX_CONTROL_PIXELS = 1e15
 
 
-def _support_within(model: CameraModel, image_size: tuple[int, int]) -> None:
-    """An MLS field's ``support`` (pixels) is at most a few image diagonals."""
+def _field_within(model: CameraModel, image_size: tuple[int, int]) -> None:
+    """An MLS field's ``support`` is at most a few image diagonals, a B-spline field's control values finite numbers
+    a fit could write (pixels)."""
+    from .models.bspline_basis import BSplineField
+    from .models.hybrid import HybridModel
     from .models.mls import MLSField
 
     field = getattr(model, "field", None)
+    diagonal = math.hypot(*image_size)
     if isinstance(field, MLSField):
-        most = MAX_SUPPORT_DIAGONALS * math.hypot(*image_size)
+        most = MAX_SUPPORT_DIAGONALS * diagonal
         if not field.support <= most:
             raise FormatError(f"distortion.support: expected a positive number of pixels at most {most:.0f} "
                               f"({MAX_SUPPORT_DIAGONALS} image diagonals), got {field.support:g}")
+    if isinstance(field, BSplineField):
+        where = "distortion.field" if isinstance(model, HybridModel) else "distortion"
+        for axis, key in enumerate(("control_x", "control_y")):
+            largest = float(np.max(np.abs(field.control[..., axis])))
+            if not largest <= MAX_CONTROL_PIXELS:
+                raise FormatError(f"{where}.{key}: expected pixel offsets of at most {MAX_CONTROL_PIXELS:g}, got "
+                                  f"{largest:g}: not a lens's field")
 
 
 def _float(x) -> float:

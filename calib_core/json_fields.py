@@ -3,6 +3,7 @@ each reader names the field of a malformed value in a ``FormatError``."""
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
 from .errors import FormatError
@@ -37,6 +38,17 @@ def whole(raw: Any, where: str) -> int:
     if not isinstance(raw, int) or isinstance(raw, bool) or raw < 0:
         raise FormatError(f"{where}: expected a whole number ≥ 0, got {raw!r}")
     return raw
+
+
+# A camera's name becomes a YAML value and a ROS topic (/NAME/image_raw) in the exports: letters, digits and
+# _ . - only, so no control character and no YAML indicator (- : # & * ! | > ' " % @ `). The web service and the
+# command line both read names with this rule.
+CAMERA_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
+CAMERA_NAME_RULE = "use 1 to 64 letters, digits and _ . - (starting with a letter or digit), e.g. left, right, cam0"
+
+
+def is_camera_name(name: Any) -> bool:
+    return isinstance(name, str) and CAMERA_NAME.fullmatch(name) is not None  # fullmatch: "cam0\n" is refused too
 
 
 def text(raw: Any, where: str) -> str:

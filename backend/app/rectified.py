@@ -14,7 +14,7 @@ import numpy as np
 from calib_core import Calibration, Observations
 from calib_core.errors import CalibError
 from calib_core.evaluation.quality import geometric_quality, raw_quality
-from calib_core.products.rectify import fixed_camera, rectified_camera, rectify_image, undistort_maps
+from calib_core.products.rectify import fixed_camera, photo_size, rectified_camera, rectify_image, undistort_maps
 
 from ..base import storage
 from .image_header import check_decodable
@@ -32,7 +32,7 @@ def _camera(cal: Calibration):
         except CalibError:
             continue
     fx, fy = cal.model.intrinsics[:2]
-    return fixed_camera(0.5 * (fx + fy), cal.image_size)
+    return fixed_camera(0.5 * (fx + fy), photo_size(cal))
 
 
 def preview(job_dir: Path, image: Path, max_pixels: int) -> bytes | None:

@@ -101,9 +101,6 @@ class JobCreate(BaseModel):
         return self
 
 
-CAMERA_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
-
-
 class RigJobCreate(BaseModel):
     """Several cameras calibrated together (docs/rigs.md): one ready set per camera, views matched by frame."""
     kind: Literal["rig"] = Field(description="a rig: several cameras fixed together, calibrated together")

@@ -4,6 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from calib_core.errors import SettingsError
+from calib_core.json_fields import CAMERA_NAME_RULE, is_camera_name
 from calib_core.pipeline import OUTLIER_SIGMA
 from calib_core.rig import calibrate_rig, evaluate_rig
 
@@ -51,10 +52,17 @@ def camera_names(args) -> list[str]:
         names = [Path(p).stem for p in args.observations]
         if len(set(names)) != len(names):
             raise SettingsError(f"two files have the same name {names}: name the cameras with --names A,B,...")
+        bad = next((n for n in names if not is_camera_name(n)), None)
+        if bad is not None:  # a name ends up in the exports' YAML and ROS topics: the service's rule
+            raise SettingsError(f"{bad[:70]!r} (a file's name) is not a camera name: name the cameras with "
+                                f"--names A,B,... ({CAMERA_NAME_RULE})")
         return names
     names = [n.strip() for n in args.names.split(",")]
     if len(names) != len(args.observations) or not all(names) or len(set(names)) != len(names):
         raise SettingsError(f"--names {args.names}: expected {len(args.observations)} distinct names, one per file")
+    bad = next((n for n in names if not is_camera_name(n)), None)
+    if bad is not None:
+        raise SettingsError(f"--names: {bad[:70]!r} is not a camera name: {CAMERA_NAME_RULE}")
     return names
 
 

@@ -10,6 +10,7 @@ from calib_core.products.rectify import (
     RectifyError,
     covered_camera,
     fixed_camera,
+    photo_size,
     rectified_camera,
     rectify_image,
     save_maps,
@@ -59,7 +60,7 @@ def chosen_camera(cal, keep: str | None, alpha: float | None, focal: float | Non
     """The rectified camera the flags ask for (--keep, --alpha, --focal: one at most; default valid);
     ``hull``: the covered region for --keep covered (default: the calibration's record)."""
     if focal is not None:
-        return fixed_camera(focal, size or cal.image_size)
+        return fixed_camera(focal, size or photo_size(cal))
     if keep == "covered":
         return covered_camera(cal, size, hull)
     return rectified_camera(cal, alpha if alpha is not None else KEEP[keep or "valid"], size)

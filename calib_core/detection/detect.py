@@ -280,8 +280,10 @@ def _views(result: ImageResult, board: BoardSpec | Target) -> list[View]:
     return views
 
 
-def none_found(board: BoardSpec, n_images: int) -> str:
-    """Why a detection found nothing, in words that fit the page and the command line alike."""
+def none_found(board: BoardSpec, n_images: int, odd_size: int = 0, undecodable: int = 0) -> str:
+    """Why a detection found nothing, in words that fit the page and the command line alike;
+    ``odd_size``, ``undecodable``: photos not searched as they were, named first (a board's size
+    is not to blame for those)."""
     if board.type == "chessboard":
         what = f"the chessboard of {board.cols} × {board.rows} inner corners"
         hint = "check the board's size (inner corners, where four squares meet, not squares) and the photos' focus"
@@ -291,7 +293,20 @@ def none_found(board: BoardSpec, n_images: int) -> str:
     else:
         what = f"the board ({board.to_spec()})"
         hint = "check the board's spec and the photos' focus"
+    unusable = _unusable(n_images, odd_size, undecodable)
+    if unusable and odd_size + undecodable == n_images:
+        return unusable
+    if unusable:
+        return f"{unusable}; {what} was found in none of the other {n_images - odd_size - undecodable}: {hint}"
     return f"{what} was found in none of the {n_images} photos: {hint}"
+
+
+def _unusable(n_images: int, odd_size: int, undecodable: int) -> str:
+    """"none of the N photos could be used: ..." when some were rejected before their board was looked
+    at or kept (another resolution than the set's, or not decodable), else ""."""
+    why = [f"{odd_size} rejected for their resolution (a set's photos are of one camera, one size)"] if odd_size else []
+    why += [f"{undecodable} could not be read as images (see each one's reason)"] if undecodable else []
+    return f"none of the {n_images} photos could be used: {' and '.join(why)}" if why else ""
 
 
 def _size_spec(target: Target, label: str) -> BoardSpec:
@@ -311,9 +326,19 @@ def _assemble(results: list[ImageResult], board: BoardSpec | Target) -> Detectio
     used = [r for r in results if r.status == "used"]
     warnings: list[str] = []
     if not used:
-        warnings.append(none_found(board, len(results)) if isinstance(board, BoardSpec) else
-                        f"no board of the target ({board.describe()}) was found in any of the {len(results)} photos: "
-                        "check the target file and the photos' focus")
+        # Photos of another size (their board thrown away) or not decodable are why, not the board: say so.
+        odd = sum(r.width is not None and r.reason.startswith("resolution differs") for r in results)
+        undecodable = sum(r.width is None for r in results)
+        searched = len(results) - odd - undecodable
+        unusable = _unusable(len(results), odd, undecodable)
+        if isinstance(board, BoardSpec):
+            warnings.append(none_found(board, len(results), odd, undecodable))
+        elif unusable and not searched:
+            warnings.append(unusable)
+        else:
+            warnings.append(f"{unusable}; " * bool(unusable) + f"no board of the target ({board.describe()}) was "
+                            f"found in any of the{' other' * bool(unusable)} {searched} photos: "
+                            "check the target file and the photos' focus")
         return Detection(None, reports, {}, warnings)
     size = _image_size(used[0])
     views = [v for r in used for v in _views(r, board)]

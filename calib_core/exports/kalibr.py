@@ -11,6 +11,8 @@ for the resolution; pixels as OpenCV's (the centre of the top-left at (0, 0)).
 """
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from .lean_fit import LeanFit
@@ -39,7 +41,7 @@ def camera_entry(index: int, fit: LeanFit, rostopic: str, overlaps: list[int] | 
             f"  distortion_coeffs: {numbers(m.coefficients)}\n"
             f"  resolution: [{int(w)}, {int(h)}]\n"
             f"  cam_overlaps: [{', '.join(str(k) for k in overlaps or [])}]\n"
-            f"  rostopic: {rostopic}\n")
+            f"  rostopic: {json.dumps(rostopic)}\n")  # a JSON string is a YAML one: a camera's name can't break it
     if t_cn_cnm1 is not None:
         text += "  T_cn_cnm1:\n" + "".join(f"  - {numbers(row)}\n" for row in t_cn_cnm1)
     return text

@@ -6,6 +6,7 @@ takes). Each camera is exported as ``export`` writes it alone (its own model
 when the tool knows it, else the closest fitted one, with the fit's error)."""
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,7 +52,7 @@ def _matrix(pose: np.ndarray) -> np.ndarray:
 def _camchain(rig: Rig, done: list[Export]) -> str:
     overlaps = rig.diagnostics.get("overlaps", {})
     names = [c.name for c in rig.cameras]
-    text = "".join(f"# cam{k} = {c.name}: {fit_note(e.fit)}\n" for k, (c, e) in enumerate(zip(rig.cameras, done, strict=True)))
+    text = "".join(f"# cam{k} = {json.dumps(c.name)}: {fit_note(e.fit)}\n" for k, (c, e) in enumerate(zip(rig.cameras, done, strict=True)))
     for k, (cam, e) in enumerate(zip(rig.cameras, done, strict=True)):
         previous = None if k == 0 else _matrix(compose(cam.pose, inverse(rig.cameras[k - 1].pose)))
         shared = [names.index(n) for n in overlaps.get(cam.name, names) if n != cam.name and n in names]

@@ -130,7 +130,7 @@ def rectified_camera(cal: Calibration, alpha: float = 0.0, size: tuple[int, int]
     Where the photo border folds over, on the region of valid rays (module text)."""
     if not (0.0 <= alpha <= 1.0):
         raise SettingsError(f"alpha: expected a number in [0, 1] (0: valid pixels only, 1: keep all), got {alpha!r}")
-    w, h = _size(size or cal.image_size)
+    w, h = _size(size) if size else photo_size(cal)
     boxes = _border_boxes(cal)
     note = ""
     if isinstance(boxes, str):  # the border is no boundary: work on the region of valid rays
@@ -152,7 +152,7 @@ def covered_camera(cal: Calibration, size: tuple[int, int] | None = None,
     pixels, by default the one the calibration recorded (``coverage_hull``)."""
     from scipy.spatial import Delaunay
 
-    w, h = _size(size or cal.image_size)
+    w, h = _size(size) if size else photo_size(cal)
     pts = np.asarray(cal.diagnostics.coverage_hull or [] if hull is None else hull, dtype=np.float64).reshape(-1, 2)
     if len(pts) < 3:
         raise RectifyError("the calibration records no covered region (coverage_hull); give the observations")
@@ -345,11 +345,17 @@ def save_maps(directory: str | Path, map_x: np.ndarray, map_y: np.ndarray, camer
     return paths
 
 
-def _size(size) -> tuple[int, int]:
+def photo_size(cal: Calibration) -> tuple[int, int]:
+    """The calibration's photo size as a rectified size: a bad one is the calibration's fault, and said so."""
+    return _size(cal.image_size, "the calibration's image_size")
+
+
+def _size(size, where: str = "size") -> tuple[int, int]:
     try:
         w, h = (int(s) for s in size)
     except (TypeError, ValueError):
-        raise SettingsError(f"size: expected (width, height), got {size!r}") from None
+        raise SettingsError(f"{where}: expected (width, height), got {size!r}") from None
     if w < 2 or h < 2 or w * h > 200_000_000:
-        raise SettingsError(f"size: expected a width and height of at least 2 pixels (and a sane total), got {w} × {h}")
+        raise SettingsError(f"{where}: expected a width and height of at least 2 pixels (and a sane total), "
+                            f"got {w} × {h}")
     return w, h

@@ -92,6 +92,11 @@ def fitted_corners(cal: Calibration, obs: Observations) -> Observations:
     if missing:
         raise DataError(f"the observations lack {len(missing)} of the calibration's {len(cal.views)} views "
                         f"(e.g. {missing[0]!r}): give the observations it was fitted to")
+    # A view the calibration was fitted to with no corners here leaves its pose free: its covariance is singular.
+    empty = [v.name for v in cal.views if not len(obs.view(v.name))]
+    if empty:
+        raise DataError(f"the observations hold no corners in {len(empty)} of the calibration's {len(cal.views)} "
+                        f"views (e.g. {empty[0]!r}): give the observations it was fitted to")
     return obs.select([v.name for v in cal.views])
 
 

@@ -6,6 +6,7 @@ import json
 import zlib
 
 import cv2
+import numpy as np
 import pytest
 
 from backend.cli import main
@@ -84,6 +85,17 @@ CASES = {  # name: (files to write {name: content}, argv with {dir}, words in th
     "object points x1e100": ({"a.json": obs(views=[{**v, "object_points": [[c * 1e100 for c in p] for p in v["object_points"]]}
                                                    for v in obs()["views"]])},
                              ["calibrate", "{dir}/a.json", "--method", "zhang"], ["object_points", "out of range"]),
+    "rig: a camera name YAML would misread": ({"a.json": obs(), "b.json": obs()},
+                                              ["rig", "{dir}/a.json", "{dir}/b.json", "--names", "a\nb: evil,c"],
+                                              ["--names", "'a\\nb: evil' is not a camera name"]),
+    "rig: a file whose name is no camera name": ({"a #1.json": obs(), "b.json": obs()},
+                                                 ["rig", "{dir}/a #1.json", "{dir}/b.json"], ["a file's name", "--names"]),
+    "detect: the board only in a photo of another size": (
+        {"a.png": cv2.imencode(".png", board_image(0))[1].tobytes(),
+         "b.png": cv2.imencode(".png", np.full((300, 400), 128, np.uint8))[1].tobytes(),
+         "c.png": cv2.imencode(".png", np.full((300, 400), 128, np.uint8))[1].tobytes()},
+        ["detect", "{dir}", "--board", "chessboard:9x6:25mm"],
+        ["none of the 3 photos could be used", "1 rejected for their resolution", "none of the other 2"]),
     "evaluate: a calibration that is not one": ({"c.json": {"format": "freecal.calibration/1", "image_size": [1, True]},
                                                  "a.json": obs()}, ["evaluate", "{dir}/c.json", "{dir}/a.json"],
                                                 ["image_size"]),
@@ -135,7 +147,23 @@ CAL_CASES = {  # name: (the calibration edited, argv after the calibration file,
     "an MLS support of 1e300": (lambda c: edited(c, type="mls", parametric=c["distortion"], samples=[[500.0, 600.0]],
                                                  offsets_x=[0.0], offsets_y=[0.0], sigma=100.0, support=1e300),
                                 ["export", "--to", "mrcal"], ["distortion.support", "image diagonals"]),
+    "a B-spline control value of 1e300": (lambda c: {**c, "model": "bspline", "distortion": bspline_field(c)},
+                                          ["evaluate"], ["distortion.control_x", "not a lens's field"]),
+    "a hybrid's control value of 1e300": (lambda c: {**c, "model": "bspline", "distortion": {
+        "type": "hybrid", "core": c["distortion"], "field": bspline_field(c)}}, ["export", "--to", "mrcal"],
+                                          ["distortion.field.control_x", "not a lens's field"]),
+    "undistort: an image_size of 100000 x 100000": (lambda c: {**c, "image_size": [100_000, 100_000]}, ["undistort"],
+                                                    ["the calibration's image_size", "100000 × 100000"]),
 }
+
+
+def bspline_field(cal: dict) -> dict:
+    """A bicubic field of 4 x 4 control values over the image, one of them 1e300 px."""
+    w, h = cal["image_size"]
+    control = [[0.0] * 4 for _ in range(4)]
+    control[1][2] = 1e300
+    return {"type": "bspline", "degree": [3, 3], "knots_u": [0.0] * 4 + [float(w)] * 4,
+            "knots_v": [0.0] * 4 + [float(h)] * 4, "control_x": control, "control_y": [[0.0] * 4 for _ in range(4)]}
 
 
 @pytest.mark.parametrize("case", list(CAL_CASES))
@@ -166,3 +194,27 @@ def test_undistort_refuses_an_image_of_too_many_pixels(tmp_path, capsys, zhang_c
     err = capsys.readouterr().err
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
     assert "bomb.png" in err and "more pixels than the limit" in err and not out.exists()
+
+
+def test_report_refuses_observations_with_a_fitted_view_emptied(tmp_path, capsys, zhang_cal):
+    """A view the calibration was fitted to, with no corners in the observations given: said, not a LinAlgError."""
+    doc = obs()
+    doc["views"][0].update(object_points=[], image_points=[], ids=[])
+    out = tmp_path / "r.html"
+    assert main(["report", write(tmp_path / "c.json", zhang_cal), write(tmp_path / "a.json", doc), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert "no corners in 1 of the calibration's" in err and repr(doc["views"][0]["name"]) in err and not out.exists()
+
+
+def test_kalibr_quotes_a_topic_yaml_would_misread(zhang_cal):
+    """Whatever a camera's name, the camchain stays YAML that reads back the same topic."""
+    import yaml
+
+    from calib_core import Calibration
+    from calib_core.exports.kalibr import camera_entry
+    from calib_core.exports.targets import export
+
+    fit = export(Calibration.from_json(zhang_cal), "kalibr").fit
+    topic = "/a\nb: evil, #c/image_raw"
+    assert yaml.safe_load(camera_entry(0, fit, topic))["cam0"]["rostopic"] == topic

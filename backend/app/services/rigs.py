@@ -9,12 +9,12 @@ each set's corners taken now, so a set deleted or detected again later changes n
 """
 from __future__ import annotations
 
-import re
 from pathlib import PurePath
 from typing import Any
 
 from calib_core import Observations
 from calib_core.errors import DataError
+from calib_core.json_fields import CAMERA_NAME_RULE, is_camera_name
 from calib_core.rig.frames import frames_of, unlinked
 
 from ...base import storage
@@ -22,7 +22,7 @@ from ...base.context import Context
 from ...base.repository import jobs, sets
 from ...queue.tasks import Queue
 from ..errors import ApiError
-from ..schemas import CAMERA_NAME, RigJobCreate
+from ..schemas import RigJobCreate
 from . import jobs as job_service
 from . import sets as set_service
 from .enqueue import enqueue_job
@@ -87,17 +87,16 @@ def _ready_set(ctx: Context, set_id: str) -> dict[str, Any]:
 def _names(body: RigJobCreate, rows: list[dict[str, Any]]) -> list[str]:
     if body.names is None:  # the sets' names without their extension, when they make distinct camera names
         stems = [PurePath(row["name"]).stem for row in rows]
-        if len(set(stems)) == len(stems) and all(re.match(CAMERA_NAME, s) for s in stems):
+        if len(set(stems)) == len(stems) and all(is_camera_name(s) for s in stems):
             return stems
         return [f"cam{k}" for k in range(len(rows))]
     names = list(body.names)
     if len(names) != len(rows):
         raise ApiError(422, f"names: {len(names)} name(s) for {len(rows)} sets; give one name per set, in the "
                             "order of set_ids (or leave names out)")
-    bad = next((n for n in names if not re.match(CAMERA_NAME, n)), None)
+    bad = next((n for n in names if not is_camera_name(n)), None)
     if bad is not None:
-        raise ApiError(422, f"names: {bad[:70]!r} is not a camera name: use 1 to 64 letters, digits and _ . - "
-                            "(starting with a letter or digit), e.g. left, right, cam0")
+        raise ApiError(422, f"names: {bad[:70]!r} is not a camera name: {CAMERA_NAME_RULE}")
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
         raise ApiError(422, f"names: {twice[0]!r} is given to more than one camera; give each camera its own name")

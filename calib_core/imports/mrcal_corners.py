@@ -87,7 +87,7 @@ def _numbers(cells: np.ndarray) -> np.ndarray:
         return np.where(missing, np.nan, np.where(missing, "0", cells).astype(float))
     except ValueError:
         bad = next(c for c in cells.ravel() if c != "-" and not _is_number(c))
-        raise FormatError(f"corners.vnl: {bad!r} is no number (x, y and the level are numbers, or '-' "
+        raise FormatError(f"corners.vnl: {str(bad)!r} is no number (x, y and the level are numbers, or '-' "
                           "where a corner is missing)") from None
 
 

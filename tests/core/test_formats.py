@@ -154,3 +154,13 @@ def test_unknown_calibration_type_is_rejected(calibration):
     doc["distortion"] = {"type": "polynomial-9000"}
     with pytest.raises(FormatError, match="unknown type"):
         Calibration.from_json(doc)
+
+
+def test_a_corners_vnl_cell_that_is_no_number_is_named_in_words():
+    from calib_core.board import BoardSpec
+    from calib_core.imports.mrcal_corners import read_corners_vnl
+
+    rows = "".join(f"a.png {10 * c + 5} {10 * r + 5} 0\n" for r in range(3) for c in range(3)).replace("25 0\n", "abc 0\n", 1)
+    with pytest.raises(FormatError) as err:
+        read_corners_vnl("# filename x y level\n" + rows, BoardSpec.parse("chessboard:3x3:10mm"), (100, 100))
+    assert "'abc' is no number" in str(err.value) and "np." not in str(err.value)

@@ -128,7 +128,8 @@ def _job_kind(body: Any) -> str | None:
 JOB_KINDS = ("calibrate", "rig")
 AnyJobCreate = Annotated[Annotated[JobCreate, Tag("calibrate")] | Annotated[RigJobCreate, Tag("rig")],
                          Discriminator(_job_kind, custom_error_type="job_kind",
-                                       custom_error_message="kind: expected \"calibrate\" (the default) or \"rig\"")]
+                                       custom_error_message="a job is a JSON object whose \"kind\" is \"calibrate\" (the default) or "
+                                                            "\"rig\"")]
 
 
 class RigSpec(BaseModel):

@@ -124,6 +124,8 @@ def test_words_for_python_failures(app, ready_set):
     r = app.post("/api/jobs", content=big, headers=JSON)
     plain_4xx(r, 422, "more than 4300 digits")
     assert "sys." not in r.json()["detail"]
+    for body in ("null", "[]", "5"):  # a job body that is no object: what a job is, not which kind
+        plain_4xx(app.post("/api/jobs", content=body, headers=JSON), 422, "a job is a JSON object")
 
 
 # ---- downloads ---------------------------------------------------------------------------

@@ -6,7 +6,7 @@ handler or dependency runs. A declared Content-Length over the limit is
 refused before reading a byte; a body without one (``Transfer-Encoding:
 chunked``) is counted as it arrives and refused the moment it passes the limit,
 so at most the limit is ever read, spooled or parsed. A body that stalls is
-answered 408 after ``BODY_IDLE_SECONDS`` of silence.
+answered 408 after ``idle_seconds`` of silence (FREECAL_BODY_IDLE_SECONDS).
 
 Each path has its limit: uploads (POST /api/sets) take FREECAL_MAX_UPLOAD_BYTES,
 every other body (JSON: a job with inline observations) FREECAL_MAX_OBSERVATIONS_BYTES.
@@ -35,9 +35,6 @@ class Limit:
         return self.max_bytes + self.slack
 
 
-# A body that stops arriving for this long is answered 408 and its connection closed: uvicorn itself
-# waits for a stalled body forever (slowloris). Counted per read, so a slow upload that moves is fine.
-BODY_IDLE_SECONDS = 30
 
 
 class _TooLarge(Exception):
@@ -45,8 +42,12 @@ class _TooLarge(Exception):
 
 
 class BodyLimit:
-    def __init__(self, app: ASGIApp, default: Limit, paths: dict[str, Limit]):
-        self.app, self.default, self.paths = app, default, paths
+    """``idle_seconds``: a body that stops arriving for this long is answered 408 and its connection
+    closed: uvicorn itself waits for a stalled body forever (slowloris). Counted per read, so a slow
+    upload that moves is fine."""
+
+    def __init__(self, app: ASGIApp, default: Limit, paths: dict[str, Limit], idle_seconds: float):
+        self.app, self.default, self.paths, self.idle_seconds = app, default, paths, idle_seconds
 
     async def __call__(self, scope: Scope, receive: Callable, send: Callable) -> None:
         if scope["type"] != "http":
@@ -64,7 +65,7 @@ class BodyLimit:
             if whole:  # the body is in: later reads wait for a disconnect (streamed answers), unbounded
                 return await receive()
             try:
-                message = await asyncio.wait_for(receive(), BODY_IDLE_SECONDS)
+                message = await asyncio.wait_for(receive(), self.idle_seconds)
             except TimeoutError:
                 stalled = refused = True
                 raise _TooLarge from None
@@ -89,7 +90,7 @@ class BodyLimit:
             if not refused:
                 raise
         if stalled and not started:
-            await _answer(send, 408, f"the request body stopped arriving (nothing for {BODY_IDLE_SECONDS} s, "
+            await _answer(send, 408, f"the request body stopped arriving (nothing for {self.idle_seconds:g} s, "
                                      f"{received} bytes in): send the whole body at once, then retry")
         elif refused and not started:
             await _refuse(send, limit, f"request body of more than {limit.bytes_allowed} bytes")

@@ -66,6 +66,8 @@ class Settings:
     max_jobs_per_client: int = 20
     # Sets the server keeps at once (507 beyond): with max_upload_bytes, a bound on its storage.
     max_sets: int = 1000
+    # A request body that sends nothing for this long (seconds) is answered 408 and closed (slowloris).
+    body_idle_seconds: float = 30.0
     # Cameras one rig job may calibrate together (POST /api/jobs with kind "rig"; 422 beyond):
     # each is a calibration of its own, then one joint fit of every camera's corners.
     max_rig_cameras: int = 8
@@ -106,6 +108,8 @@ class Settings:
         for name in ("max_upload_bytes", "max_files", "max_image_pixels", "max_jobs_per_client", "max_sets"):
             if getattr(settings, name) < 1:
                 raise SystemExit(f"FREECAL_{name.upper()}={getattr(settings, name)}: expected a positive number")
+        if not settings.body_idle_seconds > 0:
+            raise SystemExit(f"FREECAL_BODY_IDLE_SECONDS={settings.body_idle_seconds}: expected a positive number")
         if settings.max_rig_cameras < 2:
             raise SystemExit(f"FREECAL_MAX_RIG_CAMERAS={settings.max_rig_cameras}: expected 2 or more (a rig is "
                              "two or more cameras)")

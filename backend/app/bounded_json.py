@@ -23,8 +23,7 @@ from calib_core.observations import MAX_DEPTH, SURROGATE_ESCAPE, depth_within, n
 
 from .errors import ApiError
 
-# The core's bounds on a JSON document (job settings nest 4 levels: body > settings > interior_knots > axis),
-# and its lone-surrogate escape, searched for in a body's bytes before the document is walked for one
+# The core's lone-surrogate escape, searched for in a body's bytes: a large body is walked only if it may hold one
 SURROGATE_ESCAPE_BYTES = re.compile(SURROGATE_ESCAPE.pattern.encode())
 
 
@@ -42,8 +41,7 @@ def parse(raw: bytes | str, what: str) -> Any:
         raise ApiError(422, f"{what} is not valid JSON ({reason}): send a JSON document (see /docs)") from None
     else:
         if depth_within(doc, MAX_DEPTH):
-            # a large body is walked only if it may hold one
-            may = (SURROGATE_ESCAPE if isinstance(raw, str) else SURROGATE_ESCAPE_BYTES).search(raw)  # type: ignore[arg-type]
+            may = SURROGATE_ESCAPE.search(raw) if isinstance(raw, str) else SURROGATE_ESCAPE_BYTES.search(raw)
             bad = not_unicode(doc) if may else None
             if bad is not None:
                 # "\ud800" is valid JSON but no character: it cannot be stored, shown or answered (UTF-8)

@@ -35,8 +35,6 @@ class Limit:
         return self.max_bytes + self.slack
 
 
-
-
 class _TooLarge(Exception):
     """The body went past its limit (or stopped arriving) while being read."""
 

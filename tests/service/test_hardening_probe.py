@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import json
 import socket
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 from fastapi.testclient import TestClient
@@ -150,6 +152,26 @@ def test_sets_past_the_limit_answer_507(tmp_path):
         assert c.get("/api/sets").json()["count"] == 2
         assert c.delete(f"/api/sets/{ids[0]}").status_code == 204
         assert c.post("/api/sets", files=upload).status_code == 201
+
+
+def test_uploads_finishing_together_stop_at_the_limit(tmp_path):
+    """Every upload is checked against FREECAL_MAX_SETS before it is read; uploads read at the
+    same time all pass that check, and the limit holds only because the set's row is counted
+    again as it is written."""
+    settings = Settings.from_env(env={"FREECAL_MAX_SETS": "2"}, data_dir=tmp_path / "data", viewer=False)
+    upload = {"files": ("train.json", json.dumps(OBS), "application/json")}
+    start = threading.Barrier(8)
+
+    def post(c) -> int:
+        start.wait()
+        return c.post("/api/sets", files=upload).status_code
+
+    with TestClient(create_app(settings), base_url="http://127.0.0.1") as c:
+        with ThreadPoolExecutor(8) as pool:
+            codes = sorted(pool.map(post, [c] * 8))
+        assert codes == [201] * 2 + [507] * 6
+        assert c.get("/api/sets").json()["count"] == 2
+    assert len(list((tmp_path / "data" / "sets").iterdir())) == 2  # the refused uploads' files are gone
 
 
 # ---- what uvicorn decides ------------------------------------------------------------------

@@ -35,7 +35,7 @@ async def create_set(
     """Store the files and queue corner detection (images); a corners JSON is ready at once."""
     uploads = [Upload(f.filename or "file", f.file) for f in files]
     await run_in_threadpool(quota.check, ctx, client_of(request))  # a set's detection is a job too
-    await run_in_threadpool(service.check_room, ctx, ctx.settings.max_sets)  # 507 past FREECAL_MAX_SETS
+    await run_in_threadpool(service.check_room, ctx)  # 507 past FREECAL_MAX_SETS
     set_id = await run_in_threadpool(service.create, ctx, queue, uploads, board, name)
     detection = job_rows.latest_detection(ctx.db, set_id)
     quota.add(client_of(request), detection["id"] if detection else None)

@@ -39,12 +39,12 @@ def create(ctx: Context, queue: Queue, files: list[uploads.Upload], board_spec: 
             if board is not None:
                 obs.board = board.to_json()
             storage.write_json(ctx.storage.observations_path(set_id), obs.to_json())
-            sets.create(ctx.db, set_id, title, "observations", obs.board, [], list(obs.image_size), len(obs.views))
+            _insert(ctx, set_id, title, "observations", obs.board, [], list(obs.image_size), len(obs.views))
             return set_id
         if board is None:
             raise ApiError(422, BOARD_NEEDED)
         _keep_skipped(ctx, set_id, got.skipped)
-        sets.create(ctx.db, set_id, title, "images", board.to_json(), got.names)
+        _insert(ctx, set_id, title, "images", board.to_json(), got.names)
     except BaseException:
         ctx.storage.remove_set(set_id)
         raise
@@ -52,12 +52,25 @@ def create(ctx: Context, queue: Queue, files: list[uploads.Upload], board_spec: 
     return set_id
 
 
-def check_room(ctx: Context, limit: int) -> None:
-    """507 once the server holds ``limit`` sets: uploads stop before the disk fills, with what to do."""
+def check_room(ctx: Context) -> None:
+    """507 once the server holds FREECAL_MAX_SETS sets: uploads stop before the disk fills, with
+    what to do. Asked before an upload is read; ``_insert`` asks again as the set is written."""
     n = sets.count(ctx.db)
-    if n >= limit:
-        raise ApiError(507, f"the server holds {n} sets, its limit (FREECAL_MAX_SETS={limit}): delete sets you no "
-                            "longer need (DELETE /api/sets/{id}, or from the page) and upload again")
+    if n >= ctx.settings.max_sets:
+        raise _full(n, ctx.settings.max_sets)
+
+
+def _insert(ctx: Context, set_id: str, name: str, source: str, board: dict | None, image_names: list[str],
+            image_size: list[int] | None = None, n_views: int = 0) -> None:
+    try:
+        sets.create(ctx.db, set_id, name, source, board, image_names, image_size, n_views, limit=ctx.settings.max_sets)
+    except sets.Full as full:  # uploads that passed check_room together: the last ones stop here
+        raise _full(full.held, ctx.settings.max_sets) from None
+
+
+def _full(held: int, limit: int) -> ApiError:
+    return ApiError(507, f"the server holds {held} sets, its limit (FREECAL_MAX_SETS={limit}): delete sets you no "
+                         "longer need (DELETE /api/sets/{id}, or from the page) and upload again")
 
 
 def start_detection(ctx: Context, queue: Queue, set_id: str, board: Any, undo_set: bool = False) -> str:

@@ -7,9 +7,23 @@ from typing import Any
 from ..db import Database, dumps, loads
 
 
+class Full(Exception):
+    """The database already holds as many sets as it may (``create``'s ``limit``)."""
+
+    def __init__(self, held: int):
+        super().__init__(f"{held} sets held")
+        self.held = held
+
+
 def create(db: Database, set_id: str, name: str, source: str, board: dict | None,
-           image_names: list[str], image_size: list[int] | None = None, n_views: int = 0) -> None:
+           image_names: list[str], image_size: list[int] | None = None, n_views: int = 0,
+           limit: int | None = None) -> None:
+    """Insert the set and its images; raises Full when ``limit`` sets are already held, counted
+    inside the write transaction, so that uploads finishing together cannot pass it."""
     with db.transaction() as con:
+        held = int(con.execute("SELECT COUNT(*) FROM sets").fetchone()[0])
+        if limit is not None and held >= limit:
+            raise Full(held)
         con.execute(
             "INSERT INTO sets (id, name, source, board, image_size, n_views, created_at) VALUES (?,?,?,?,?,?,?)",
             (set_id, name, source, None if board is None else dumps(board),

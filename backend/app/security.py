@@ -21,10 +21,14 @@ from __future__ import annotations
 
 import hmac
 import threading
+from collections import Counter
+from collections.abc import AsyncIterator, Callable, Iterator
+from contextlib import asynccontextmanager, contextmanager
 from typing import Annotated
 
 from fastapi import Depends, FastAPI, Request
 from fastapi.responses import HTMLResponse
+from starlette.concurrency import run_in_threadpool
 from starlette.requests import HTTPConnection
 
 from calib_core.errors import SettingsError
@@ -81,26 +85,57 @@ def install_cors(app: FastAPI, origins: str) -> None:
 
 class ClientQuota:
     """Job ids per client IP, in this API process; a job stops counting once it is no longer
-    queued or running (checked in the database). After a restart the count starts afresh."""
+    queued or running (checked in the database). After a restart the count starts afresh.
+
+    A request holds its place from the check until its job exists (``place``): checked and
+    counted apart, requests arriving together all passed the check."""
 
     def __init__(self, limit: int):
         self.limit = limit
         self.lock = threading.Lock()
         self.active: dict[str, set[str]] = {}
+        self.placing: Counter[str] = Counter()  # requests checked whose job is not made yet
 
-    def check(self, ctx, client: str) -> None:
+    @contextmanager
+    def place(self, ctx, client: str) -> Iterator[Callable[[str | None], None]]:
+        """429 when ``client`` has its limit of jobs queued or running (or being made); else a
+        place, and a function that records the job made in it (None: none was)."""
+        self._claim(ctx, client)
+        try:
+            yield lambda job_id: self._made(client, job_id)
+        finally:
+            self._release(client)
+
+    @asynccontextmanager
+    async def place_async(self, ctx, client: str) -> AsyncIterator[Callable[[str | None], None]]:
+        """``place``, its check (the database) on a worker thread."""
+        await run_in_threadpool(self._claim, ctx, client)
+        try:
+            yield lambda job_id: self._made(client, job_id)
+        finally:
+            self._release(client)
+
+    def _claim(self, ctx, client: str) -> None:
         with self.lock:
             ids = self.active.get(client, set())
             live = {i for i in ids if (job := job_rows.get(ctx.db, i)) is not None and job["state"] in job_rows.ACTIVE}
             self.active[client] = live
-            if len(live) >= self.limit:
-                raise ApiError(429, f"you have {len(live)} jobs queued or running, the limit per client is "
+            held = len(live) + self.placing[client]
+            if held >= self.limit:
+                raise ApiError(429, f"you have {held} jobs queued or running, the limit per client is "
                                     f"{self.limit}: wait for some to finish (or cancel them) and retry")
+            self.placing[client] += 1
 
-    def add(self, client: str, job_id: str | None) -> None:
+    def _made(self, client: str, job_id: str | None) -> None:
         if job_id is not None:
             with self.lock:
                 self.active.setdefault(client, set()).add(job_id)
+
+    def _release(self, client: str) -> None:
+        with self.lock:
+            self.placing[client] -= 1
+            if not self.placing[client]:
+                del self.placing[client]
 
 
 def client_of(request: Request) -> str:

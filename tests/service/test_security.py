@@ -4,13 +4,18 @@ worker: jobs stay queued, which is what the quota and path tests need).
 - FREECAL_TOKEN: every /api request needs the token (header or ?token=), 401 otherwise;
   the page and /docs load without it (they hold no data and must load to ask).
 - CORS is closed unless FREECAL_CORS_ORIGINS lists an origin.
-- Jobs per client: 429 with advice past FREECAL_MAX_JOBS_PER_CLIENT.
+- Jobs per client: 429 with advice past FREECAL_MAX_JOBS_PER_CLIENT, also for requests arriving together.
 - Downloads and thumbnails take names, never paths: nothing outside a job's or set's folder.
 - The service and the 3D view bind loopback by default, and a token keeps the 3D view there;
   /docs needs no internet. (The /viewer proxy over real sockets: test_viewer_proxy.py.)
 """
 from __future__ import annotations
 
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+import cv2
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
@@ -46,6 +51,7 @@ def auth(token: str = TOKEN) -> dict:
 
 
 OBS = synthetic("radial").train.to_json()
+PNG = cv2.imencode(".png", np.full((48, 64), 128, np.uint8))[1].tobytes()
 
 
 @pytest.mark.parametrize("method, path", [
@@ -111,6 +117,25 @@ def test_jobs_per_client_answer_429_with_advice(guarded):
     assert guarded.post(f"/api/jobs/{ids[0]}/cancel", headers=auth()).json()["state"] == "cancelled"
     assert guarded.post("/api/jobs", headers=auth(), json={"observations": OBS}).status_code == 201
     assert guarded.get("/api/health", headers=auth()).status_code == 200  # reads are never limited
+
+
+@pytest.mark.parametrize("what", ["jobs", "sets"])
+def test_requests_arriving_together_stop_at_the_quota(tmp_path, what):
+    """Each request (a calibration, or an upload of photos: their detection) holds its place from the quota's check until its job exists: checked and
+    counted apart, eight requests at once all passed a limit of two."""
+    start = threading.Barrier(8)
+
+    def post(c) -> int:
+        start.wait()
+        if what == "jobs":
+            return c.post("/api/jobs", json={"observations": OBS}).status_code
+        return c.post("/api/sets", data={"board": "chessboard:6x4:20mm"}, files={"files": ("a.png", PNG, "image/png")}).status_code
+
+    with app_client(tmp_path, max_jobs_per_client=2) as c:
+        with ThreadPoolExecutor(8) as pool:
+            codes = sorted(pool.map(post, [c] * 8))
+        assert codes == [201] * 2 + [429] * 6
+        assert c.get("/api/jobs", params={"kind": "all"}).json()["count"] == 2
 
 
 def done_job(client: TestClient, headers: dict | None = None) -> tuple[str, bytes]:

@@ -32,9 +32,9 @@ MEDIA = {".json": "application/json", ".csv": "text/csv; charset=utf-8", ".yaml"
 def create_job(ctx: ContextDep, queue: QueueDep, quota: QuotaDep, request: Request, body: AnyJobCreate) -> JobPublic:
     """Queue a calibration of a ready set (or of corners given inline) with one method or 'compare'; or, with
     "kind": "rig", several cameras calibrated together from one ready set each (set_ids)."""
-    quota.check(ctx, client_of(request))  # 429 past FREECAL_MAX_JOBS_PER_CLIENT
-    job_id = service.create(ctx, queue, body) if isinstance(body, JobCreate) else rigs.create(ctx, queue, body)
-    quota.add(client_of(request), job_id)
+    with quota.place(ctx, client_of(request)) as made:  # 429 past FREECAL_MAX_JOBS_PER_CLIENT
+        job_id = service.create(ctx, queue, body) if isinstance(body, JobCreate) else rigs.create(ctx, queue, body)
+        made(job_id)
     return job_public(service.get(ctx, job_id))
 
 

@@ -34,11 +34,11 @@ async def create_set(
 ) -> SetPublic:
     """Store the files and queue corner detection (images); a corners JSON is ready at once."""
     uploads = [Upload(f.filename or "file", f.file) for f in files]
-    await run_in_threadpool(quota.check, ctx, client_of(request))  # a set's detection is a job too
-    await run_in_threadpool(service.check_room, ctx)  # 507 past FREECAL_MAX_SETS
-    set_id = await run_in_threadpool(service.create, ctx, queue, uploads, board, name)
-    detection = job_rows.latest_detection(ctx.db, set_id)
-    quota.add(client_of(request), detection["id"] if detection else None)
+    async with quota.place_async(ctx, client_of(request)) as made:  # a set's detection is a job too
+        await run_in_threadpool(service.check_room, ctx)  # 507 past FREECAL_MAX_SETS
+        set_id = await run_in_threadpool(service.create, ctx, queue, uploads, board, name)
+        detection = job_rows.latest_detection(ctx.db, set_id)
+        made(detection["id"] if detection else None)
     return set_public(ctx, service.get(ctx, set_id), with_images=True)
 
 
@@ -69,9 +69,9 @@ def detect_again(ctx: ContextDep, queue: QueueDep, quota: QuotaDep, request: Req
                  body: DetectionCreate) -> SetPublic:
     """Detect the set's photos again with another board (e.g. the size the photos suggest): no new upload.
     Calibrations created meanwhile wait for the new corners."""
-    quota.check(ctx, client_of(request))
-    job_id = service.detect_again(ctx, queue, set_id, body.board)
-    quota.add(client_of(request), job_id)
+    with quota.place(ctx, client_of(request)) as made:
+        job_id = service.detect_again(ctx, queue, set_id, body.board)
+        made(job_id)
     return set_public(ctx, service.get(ctx, set_id), with_images=True)
 
 

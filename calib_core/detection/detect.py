@@ -244,13 +244,15 @@ def _init_worker(opencv_log_level: int, quiet: bool) -> None:
 
 
 def _reject_odd_sizes(results: list[ImageResult]) -> None:
-    """All views share one camera: images of another size than the most common are rejected."""
-    sizes = Counter((r.width, r.height) for r in results if r.width is not None)
+    """All views share one camera: views of another size than the most common among the images
+    where a board was found are rejected (not among all images: a folder's photos without the
+    board, of another size, would reject every view)."""
+    sizes = Counter((r.width, r.height) for r in results if r.status == "used")
     if not sizes:
         return
     (w, h), _ = sizes.most_common(1)[0]
     for r in results:
-        if r.width is not None and (r.width, r.height) != (w, h):
+        if r.status == "used" and (r.width, r.height) != (w, h):
             r.status = "rejected"
             r.reason = f"resolution differs from the set: {r.width}x{r.height}, the others are {w}x{h}"
             r.ids = r.points = r.boards = None
@@ -280,9 +282,9 @@ def _views(result: ImageResult, board: BoardSpec | Target) -> list[View]:
     return views
 
 
-def none_found(board: BoardSpec, n_images: int, odd_size: int = 0, undecodable: int = 0) -> str:
+def none_found(board: BoardSpec, n_images: int, undecodable: int = 0) -> str:
     """Why a detection found nothing, in words that fit the page and the command line alike;
-    ``odd_size``, ``undecodable``: photos not searched as they were, named first (a board's size
+    ``undecodable``: photos not searched as they could not be read, named first (a board's size
     is not to blame for those)."""
     if board.type == "chessboard":
         what = f"the chessboard of {board.cols} × {board.rows} inner corners"
@@ -293,20 +295,18 @@ def none_found(board: BoardSpec, n_images: int, odd_size: int = 0, undecodable: 
     else:
         what = f"the board ({board.to_spec()})"
         hint = "check the board's spec and the photos' focus"
-    unusable = _unusable(n_images, odd_size, undecodable)
-    if unusable and odd_size + undecodable == n_images:
+    unusable = _unusable(n_images, undecodable)
+    if unusable and undecodable == n_images:
         return unusable
     if unusable:
-        return f"{unusable}; {what} was found in none of the other {n_images - odd_size - undecodable}: {hint}"
+        return f"{unusable}; {what} was found in none of the other {n_images - undecodable}: {hint}"
     return f"{what} was found in none of the {n_images} photos: {hint}"
 
 
-def _unusable(n_images: int, odd_size: int, undecodable: int) -> str:
-    """"none of the N photos could be used: ..." when some were rejected before their board was looked
-    at or kept (another resolution than the set's, or not decodable), else ""."""
-    why = [f"{odd_size} rejected for their resolution (a set's photos are of one camera, one size)"] if odd_size else []
-    why += [f"{undecodable} could not be read as images (see each one's reason)"] if undecodable else []
-    return f"none of the {n_images} photos could be used: {' and '.join(why)}" if why else ""
+def _unusable(n_images: int, undecodable: int) -> str:
+    """"none of the N photos could be used: ..." when some could not be read as images, else ""."""
+    return (f"none of the {n_images} photos could be used: {undecodable} could not be read as images "
+            "(see each one's reason)") if undecodable else ""
 
 
 def _size_spec(target: Target, label: str) -> BoardSpec:
@@ -326,13 +326,12 @@ def _assemble(results: list[ImageResult], board: BoardSpec | Target) -> Detectio
     used = [r for r in results if r.status == "used"]
     warnings: list[str] = []
     if not used:
-        # Photos of another size (their board thrown away) or not decodable are why, not the board: say so.
-        odd = sum(r.width is not None and r.reason.startswith("resolution differs") for r in results)
+        # Photos that could not be decoded are why, not the board: say so.
         undecodable = sum(r.width is None for r in results)
-        searched = len(results) - odd - undecodable
-        unusable = _unusable(len(results), odd, undecodable)
+        searched = len(results) - undecodable
+        unusable = _unusable(len(results), undecodable)
         if isinstance(board, BoardSpec):
-            warnings.append(none_found(board, len(results), odd, undecodable))
+            warnings.append(none_found(board, len(results), undecodable))
         elif unusable and not searched:
             warnings.append(unusable)
         else:

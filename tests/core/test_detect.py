@@ -40,6 +40,19 @@ def images(tmp_path):
     return tmp_path
 
 
+def test_the_set_takes_the_size_of_its_boards_not_of_photos_without_one(tmp_path):
+    """Three blank frames of another size (screenshots, frames without the board) and two
+    board photos: the boards' size is the set's, and the blank frames say they show no board."""
+    cv2.imwrite(str(tmp_path / "a_good.png"), board_image())
+    cv2.imwrite(str(tmp_path / "b_good.png"), cv2.flip(board_image(), -1))
+    for k in range(3):
+        cv2.imwrite(str(tmp_path / f"c_blank{k}.png"), np.full((480, 640), 128, np.uint8))
+    det = detect_images(tmp_path, BOARD, workers=1)
+    assert det.observations is not None and det.observations.image_size == (400, 360)
+    assert [v.name for v in det.observations.views] == ["a_good.png", "b_good.png"]
+    assert {r.reason for r in det.reports if r.name.startswith("c_")} == {"board not found"}
+
+
 def test_every_image_gets_a_plain_report(images):
     calls = []
     det = detect_images(images, BOARD, progress=lambda d, t: calls.append((d, t)), workers=2)

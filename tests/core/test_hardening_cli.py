@@ -6,7 +6,6 @@ import json
 import zlib
 
 import cv2
-import numpy as np
 import pytest
 
 from backend.cli import main
@@ -90,12 +89,6 @@ CASES = {  # name: (files to write {name: content}, argv with {dir}, words in th
                                               ["--names", "'a\\nb: evil' is not a camera name"]),
     "rig: a file whose name is no camera name": ({"a #1.json": obs(), "b.json": obs()},
                                                  ["rig", "{dir}/a #1.json", "{dir}/b.json"], ["a file's name", "--names"]),
-    "detect: the board only in a photo of another size": (
-        {"a.png": cv2.imencode(".png", board_image(0))[1].tobytes(),
-         "b.png": cv2.imencode(".png", np.full((300, 400), 128, np.uint8))[1].tobytes(),
-         "c.png": cv2.imencode(".png", np.full((300, 400), 128, np.uint8))[1].tobytes()},
-        ["detect", "{dir}", "--board", "chessboard:9x6:25mm"],
-        ["none of the 3 photos could be used", "1 rejected for their resolution", "none of the other 2"]),
     "evaluate: a calibration that is not one": ({"c.json": {"format": "freecal.calibration/1", "image_size": [1, True]},
                                                  "a.json": obs()}, ["evaluate", "{dir}/c.json", "{dir}/a.json"],
                                                 ["image_size"]),

@@ -6,7 +6,8 @@ handler or dependency runs. A declared Content-Length over the limit is
 refused before reading a byte; a body without one (``Transfer-Encoding:
 chunked``) is counted as it arrives and refused the moment it passes the limit,
 so at most the limit is ever read, spooled or parsed. A body that stalls is
-answered 408 after ``idle_seconds`` of silence (FREECAL_BODY_IDLE_SECONDS).
+answered 408 after ``idle_seconds`` of silence (FREECAL_BODY_IDLE_SECONDS), and so is
+one that trickles in slower than ``min_rate`` on average (FREECAL_BODY_MIN_RATE).
 
 Each path has its limit: uploads (POST /api/sets) take FREECAL_MAX_UPLOAD_BYTES,
 every other body (JSON: a job with inline observations) FREECAL_MAX_OBSERVATIONS_BYTES.
@@ -42,10 +43,14 @@ class _TooLarge(Exception):
 class BodyLimit:
     """``idle_seconds``: a body that stops arriving for this long is answered 408 and its connection
     closed: uvicorn itself waits for a stalled body forever (slowloris). Counted per read, so a slow
-    upload that moves is fine."""
+    upload that moves is fine, unless it moves slower than ``min_rate`` bytes a second on average:
+    after ``idle_seconds`` of grace, each byte in buys 1 / ``min_rate`` seconds more (Apache's
+    mod_reqtimeout rule), so a byte every few seconds cannot hold a connection for days."""
 
-    def __init__(self, app: ASGIApp, default: Limit, paths: dict[str, Limit], idle_seconds: float):
-        self.app, self.default, self.paths, self.idle_seconds = app, default, paths, idle_seconds
+    def __init__(self, app: ASGIApp, default: Limit, paths: dict[str, Limit], idle_seconds: float,
+                 min_rate: float):
+        self.app, self.default, self.paths = app, default, paths
+        self.idle_seconds, self.min_rate = idle_seconds, min_rate
 
     async def __call__(self, scope: Scope, receive: Callable, send: Callable) -> None:
         if scope["type"] != "http":
@@ -56,14 +61,21 @@ class BodyLimit:
         if length.isdigit() and int(length) > limit.bytes_allowed:
             await _refuse(send, limit, f"request body of {int(length)} bytes")
             return
-        received, refused, started, stalled, whole = 0, False, False, False, False
+        received, refused, started, stalled, slow, whole = 0, False, False, False, False, False
+        loop = asyncio.get_running_loop()
+        begun = loop.time()
 
         async def counted() -> Message:
-            nonlocal received, refused, stalled, whole
+            nonlocal received, refused, stalled, slow, whole
             if whole:  # the body is in: later reads wait for a disconnect (streamed answers), unbounded
                 return await receive()
+            wait = self.idle_seconds
+            if self.min_rate > 0:
+                left = begun + self.idle_seconds + received / self.min_rate - loop.time()
+                slow = left < wait
+                wait = max(left, 0.0)
             try:
-                message = await asyncio.wait_for(receive(), self.idle_seconds)
+                message = await asyncio.wait_for(receive(), wait)
             except TimeoutError:
                 stalled = refused = True
                 raise _TooLarge from None
@@ -87,7 +99,12 @@ class BodyLimit:
         except Exception:
             if not refused:
                 raise
-        if stalled and not started:
+        if stalled and not started and slow:
+            await _answer(send, 408, f"the request body arrived too slowly ({received} bytes in "
+                                     f"{loop.time() - begun:.0f} s, under {self.min_rate:g} bytes a second on average, "
+                                     "the server's FREECAL_BODY_MIN_RATE): upload from a faster connection, or fewer "
+                                     "files at a time")
+        elif stalled and not started:
             await _answer(send, 408, f"the request body stopped arriving (nothing for {self.idle_seconds:g} s, "
                                      f"{received} bytes in): send the whole body at once, then retry")
         elif refused and not started:

@@ -113,7 +113,8 @@ def body_limits(settings: Settings) -> dict:
                    slack=1024 * 1024)  # multipart framing and the form fields around the files
     json_body = Limit(settings.max_observations_bytes, "send fewer views or points inline, or upload them as a set "
                       "first (the server's FREECAL_MAX_OBSERVATIONS_BYTES)", slack=64 * 1024)  # the job's other fields
-    return {"default": json_body, "paths": {"/api/sets": upload}, "idle_seconds": settings.body_idle_seconds}
+    return {"default": json_body, "paths": {"/api/sets": upload}, "idle_seconds": settings.body_idle_seconds,
+            "min_rate": settings.body_min_rate}
 
 
 def spool_in(directory) -> str | None:

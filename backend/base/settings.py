@@ -68,6 +68,9 @@ class Settings:
     max_sets: int = 1000
     # A request body that sends nothing for this long (seconds) is answered 408 and closed (slowloris).
     body_idle_seconds: float = 30.0
+    # ... and one that arrives slower than this on average (bytes a second, after body_idle_seconds
+    # of grace) too: a byte every few seconds would hold a connection for days (0 = no minimum).
+    body_min_rate: float = 500.0
     # Cameras one rig job may calibrate together (POST /api/jobs with kind "rig"; 422 beyond):
     # each is a calibration of its own, then one joint fit of every camera's corners.
     max_rig_cameras: int = 8
@@ -110,6 +113,8 @@ class Settings:
                 raise SystemExit(f"FREECAL_{name.upper()}={getattr(settings, name)}: expected a positive number")
         if not settings.body_idle_seconds > 0:
             raise SystemExit(f"FREECAL_BODY_IDLE_SECONDS={settings.body_idle_seconds}: expected a positive number")
+        if not settings.body_min_rate >= 0:
+            raise SystemExit(f"FREECAL_BODY_MIN_RATE={settings.body_min_rate}: expected 0 (no minimum) or more")
         if settings.max_rig_cameras < 2:
             raise SystemExit(f"FREECAL_MAX_RIG_CAMERAS={settings.max_rig_cameras}: expected 2 or more (a rig is "
                              "two or more cameras)")

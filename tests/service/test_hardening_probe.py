@@ -7,7 +7,7 @@
 - object points far past any board (1e150): 422 at upload, not an internal error in the job;
 - too many stored sets: 507 past FREECAL_MAX_SETS;
 - a forged X-Forwarded-For from a loopback client does not escape the per-client job quota;
-- a body that stops arriving is answered 408, not held open.
+- a body that stops arriving, or trickles in, is answered 408, not held open.
 
 In-process (TestClient, no worker) where the app alone answers; a real `freecal serve` for
 what uvicorn decides (forwarded headers, a stalled body).
@@ -206,3 +206,27 @@ def test_a_stalled_body_is_answered_408_and_closed(served):
     assert b"stopped arriving" in answer
     assert time.monotonic() - start < IDLE + 10
     assert served.client.get("/api/health").status_code == 200
+
+
+def test_a_body_that_trickles_in_is_answered_408_and_closed(served):
+    """Ten bytes a second never stalls for IDLE seconds, and at FREECAL_BODY_MIN_RATE (500 bytes a
+    second by default) it has used its time after IDLE seconds and a fiftieth of a second a byte."""
+    with socket.create_connection(("127.0.0.1", served.port), timeout=IDLE + 20) as s:
+        s.sendall(f"POST /api/jobs HTTP/1.1\r\nHost: 127.0.0.1:{served.port}\r\nContent-Type: application/json\r\n"
+                  "Content-Length: 2000000\r\n\r\n".encode())
+        start, answer = time.monotonic(), b""
+        s.settimeout(IDLE / 2)
+        while time.monotonic() - start < 4 * IDLE + 10:
+            try:
+                s.sendall(b" " * 10)
+                chunk = s.recv(4096)
+            except TimeoutError:
+                continue
+            except OSError:  # the server closed the connection after its answer
+                break
+            if not chunk:
+                break
+            answer += chunk
+    assert answer.startswith(b"HTTP/1.1 408"), answer[:200]
+    assert b"arrived too slowly" in answer and b"FREECAL_BODY_MIN_RATE" in answer
+    assert time.monotonic() - start < 2 * IDLE + 5

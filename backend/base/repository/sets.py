@@ -21,8 +21,7 @@ def create(db: Database, set_id: str, name: str, source: str, board: dict | None
     """Insert the set and its images; raises Full when ``limit`` sets are already held, counted
     inside the write transaction, so that uploads finishing together cannot pass it."""
     with db.transaction() as con:
-        held = int(con.execute("SELECT COUNT(*) FROM sets").fetchone()[0])
-        if limit is not None and held >= limit:
+        if limit is not None and (held := int(con.execute("SELECT COUNT(*) FROM sets").fetchone()[0])) >= limit:
             raise Full(held)
         con.execute(
             "INSERT INTO sets (id, name, source, board, image_size, n_views, created_at) VALUES (?,?,?,?,?,?,?)",

@@ -49,12 +49,24 @@ def _matrix(pose: np.ndarray) -> np.ndarray:
     return out
 
 
+# Kalibr's lengths are metres; a rig's are its board's units (``provenance.tvec_units``).
+METRES = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}
+
+
 def _camchain(rig: Rig, done: list[Export]) -> str:
+    units = rig.cameras[0].calibration.provenance.get("tvec_units")
+    if units not in METRES:
+        raise SettingsError(f"Kalibr's camchain gives the cameras' offsets in metres, and this rig's lengths are in "
+                            f"{units or 'units it does not record'}: give the observations' board its units "
+                            "(\"units\": \"mm\", formats.md section 1) and calibrate the rig again")
     overlaps = rig.diagnostics.get("overlaps", {})
     names = [c.name for c in rig.cameras]
     text = "".join(f"# cam{k} = {json.dumps(c.name)}: {fit_note(e.fit)}\n" for k, (c, e) in enumerate(zip(rig.cameras, done, strict=True)))
+    text += f"# T_cn_cnm1: metres (the rig was calibrated in {units})\n"
     for k, (cam, e) in enumerate(zip(rig.cameras, done, strict=True)):
         previous = None if k == 0 else _matrix(compose(cam.pose, inverse(rig.cameras[k - 1].pose)))
+        if previous is not None:
+            previous[:3, 3] *= METRES[units]
         shared = [names.index(n) for n in overlaps.get(cam.name, names) if n != cam.name and n in names]
         text += camera_entry(k, e.fit, f"/{cam.name}/image_raw", shared, previous)
     return text

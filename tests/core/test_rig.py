@@ -4,6 +4,7 @@ stereo pair, freecal.rig/1 read back and self-consistent, and bad rigs refused
 saying why."""
 from __future__ import annotations
 
+import copy
 import json
 
 import cv2
@@ -18,11 +19,13 @@ from calib_core.errors import DataError, FormatError, SettingsError
 from calib_core.models import camera
 from calib_core.models.opencv import OpenCVModel
 from calib_core.observations import Observations, View
+from calib_core.provenance import UNKNOWN_UNITS
 from calib_core.rig import Rig, calibrate_rig, evaluate_rig, frame_of
 
 from ..conftest import shared_data
 
 BOARD = np.array([[x * 60.0, y * 60.0, 0.0] for y in range(7) for x in range(10)])
+BOARD_SPEC = {"type": "chessboard", "cols": 10, "rows": 7, "square_size": 60.0, "units": "mm"}
 SIZE = (1280, 960)
 TRUE_MODELS = [OpenCVModel([900, 902, 640, 480, 0], [-0.12, 0.05, 0.001, -0.0005, 0.0]),
                OpenCVModel([880, 881, 650, 470, 0], [-0.10, 0.03, -0.001, 0.0008, 0.0]),
@@ -56,7 +59,7 @@ def simulated_rig(frames_seen: list[range], sigma: float = 0.2, seed: int = 0) -
             inside = np.all((uv > 0) & (uv < np.array(SIZE) - 1), axis=1)
             assert inside.all(), "the simulated rig must see every board whole"
             views.append(View(f"cam{c}_{f:03d}.png", BOARD.copy(), uv, np.arange(len(BOARD))))
-        cameras[f"cam{c}"] = Observations(SIZE, views)
+        cameras[f"cam{c}"] = Observations(SIZE, views, dict(BOARD_SPEC))
     return cameras
 
 
@@ -214,7 +217,8 @@ def test_rig_exports_read_by_opencv_and_kalibr_readers(tmp_path, capsys):
     rig = calibrate_rig(simulated_rig([range(0, 10)] * 3, seed=4), "zhang")
     frame = rig.frames[0]
     board_in_ref = camera.rotate(frame.rvec, BOARD) + frame.tvec
-    # Kalibr: every camera, each placed from the one before; a board projects as the rig projects it
+    # Kalibr: every camera, each placed from the one before, in metres (the rig's board is in mm);
+    # a board projects as the rig projects it
     kalibr = export_rig(rig, "kalibr")
     chain = kalibr.text
     pose = np.eye(4)
@@ -222,9 +226,14 @@ def test_rig_exports_read_by_opencv_and_kalibr_readers(tmp_path, capsys):
         entry = kalibr_camera(chain, k)
         if k:
             pose = np.array(entry["T_cn_cnm1"]) @ pose
-        pc = board_in_ref @ pose[:3, :3].T + pose[:3, 3]
+        pc = 1e-3 * board_in_ref @ pose[:3, :3].T + pose[:3, 3]
         fit = kalibr.cameras[k].fit
         assert np.max(np.abs(kalibr_project(entry, pc) - rig.project(cam.name, board_in_ref))) < 3 * fit.covered.max + 1e-6
+    assert np.linalg.norm(np.array(kalibr_camera(chain, 1)["T_cn_cnm1"])[:3, 3]) == pytest.approx(0.150, abs=0.005)
+    unitless = copy.deepcopy(rig)  # corners with no board: lengths in units nobody recorded
+    unitless.cameras[0].calibration.provenance["tvec_units"] = UNKNOWN_UNITS
+    with pytest.raises(SettingsError, match="in metres"):
+        export_rig(unitless, "kalibr")
     # OpenCV's stereo file: cv2 reads M1 D1 M2 D2 R T; projectPoints agrees exactly (the models are OpenCV's own)
     with pytest.raises(SettingsError, match="two cameras"):
         export_rig(rig, "opencv")

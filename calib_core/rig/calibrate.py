@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..board import BoardSpec
 from ..calibration import Calibration
 from ..errors import CalibError, DataError
 from ..fit_report import FitMetrics
@@ -27,6 +28,13 @@ from .rig import Rig, RigCamera, RigFrame, RigMetrics
 # others' (unsynchronised shutters, a mislabelled frame) or it moved.
 INCONSISTENT_RATIO = 1.5
 INCONSISTENT_MARGIN_PX = 0.1
+# Views matched as one frame are of one moment when the pose of one camera relative to the other
+# is the same at each: measured per frame from the cameras' own calibrations it scatters by a
+# few tenths of a degree (a tenth on the tests' pairs); frames off by one (a mislabelled frame,
+# a dropped image) scatter by tens of degrees. The median frame's angle from their mean.
+MAX_FRAME_SCATTER_DEG = 5.0
+# A camera placed from fewer shared frames than this rests on them alone: a warning says so.
+FEW_SHARED_FRAMES = 3
 
 
 @dataclass
@@ -59,7 +67,8 @@ def calibrate_rig(cameras: dict[str, Observations], method: str = "auto", refere
     reference = names[0] if reference is None else reference
     if reference not in cameras:
         raise DataError(f"reference camera {reference!r} is not one of the cameras {names}")
-    # duplicate and unshared frames fail before any calibration
+    # another board, duplicate and unshared frames fail before any calibration
+    check_boards(cameras, reference)
     lonely = unlinked({name: frames_of(name, obs.views) for name, obs in cameras.items()}, reference)
     if lonely:
         raise DataError(_unlinked_words(lonely, reference))
@@ -74,14 +83,14 @@ def calibrate_rig(cameras: dict[str, Observations], method: str = "auto", refere
     progress("rig: relative poses", 0.8)
     order = [names.index(reference)] + [k for k in range(len(names)) if names[k] != reference]
     parts = [parts[k] for k in order]
-    extrinsics = _initial_extrinsics(parts)
+    extrinsics, placed_from = _initial_extrinsics(parts)
     frame_names = sorted({f for p in parts for f in p.frames}, key=frame_key)
     frame_poses = initial_frames(parts, extrinsics, frame_names)
     corners = corners_of(parts, frame_names)
     t0 = time.perf_counter()
     result = adjust(corners, [p.calibration.model for p in parts], extrinsics, frame_poses, refine_models)
     progress("rig: done", 1.0)
-    return _rig(parts, frame_names, corners, result, time.perf_counter() - t0, refine_models)
+    return _rig(parts, frame_names, corners, result, time.perf_counter() - t0, refine_models, placed_from)
 
 
 def _camera_part(name: str, obs: Observations, cal: Calibration) -> CameraViews:
@@ -102,6 +111,26 @@ def frame_key(frame: str):
     return (0, int(frame), frame) if frame.isdigit() else (1, 0, frame)
 
 
+def check_boards(cameras: dict[str, Observations], reference: str) -> None:
+    """Every camera's corners of one board: frames are moments when the cameras saw the same board,
+    so a camera whose observations name another (its size, squares, units) was given the wrong file
+    or spec, and its corners would pull every camera's model (a board in cm among mm: 120 px)."""
+    ref = cameras[reference].board
+    if ref is None:
+        return
+    ref_board = BoardSpec.from_json(ref).to_json()
+    for name, obs in cameras.items():
+        if obs.board is None or name == reference:
+            continue
+        board = BoardSpec.from_json(obs.board).to_json()
+        differ = [k for k in dict.fromkeys([*ref_board, *board]) if ref_board.get(k) != board.get(k)]
+        if differ:
+            raise DataError(f"camera {name!r} saw another board than camera {reference!r}: "
+                            + ", ".join(f"{k} {board.get(k)!r} against {ref_board.get(k)!r}" for k in differ)
+                            + "; the cameras of a rig photograph one board together: give every camera the same "
+                            "board spec (detect each camera's photos with it)")
+
+
 def _unlinked_words(lonely: list[str], reference: str) -> str:
     return (f"camera(s) {lonely} share no frame with camera {reference!r} or any camera linked to it: photograph "
             "the board with them at the same moments, and number the images alike (left07.jpg, right07.jpg) or set "
@@ -109,12 +138,15 @@ def _unlinked_words(lonely: list[str], reference: str) -> str:
 
 
 # ---- the starting point -----------------------------------------------------------
-def _initial_extrinsics(parts: list[CameraViews]) -> np.ndarray:
+def _initial_extrinsics(parts: list[CameraViews]) -> tuple[np.ndarray, dict[int, tuple[int, int]]]:
     """(C, 6) each camera's pose relative to the first (the reference), from
     the frames it shares with a camera already placed: rotations averaged,
-    translations by their median. Cameras are placed through any chain of
-    shared frames."""
+    translations by their median; and per camera placed so, (the camera it was
+    placed from, the frames they share). Cameras are placed through any chain
+    of shared frames. Views that are not of one moment (their relative pose
+    scatters by more than MAX_FRAME_SCATTER_DEG) are refused."""
     placed = {0: np.zeros(6)}
+    placed_from: dict[int, tuple[int, int]] = {}
     while len(placed) < len(parts):
         progress_made = False
         for c in range(len(parts)):
@@ -127,14 +159,23 @@ def _initial_extrinsics(parts: list[CameraViews]) -> np.ndarray:
                 relative = np.array([compose(parts[c].poses[parts[c].frames.index(f)],
                                               inverse(parts[p].poses[parts[p].frames.index(f)])) for f in shared])
                 rotation = Rotation.from_rotvec(relative[:, :3]).mean()
+                scatter = np.degrees(np.median((Rotation.from_rotvec(relative[:, :3]) * rotation.inv()).magnitude()))
+                if scatter > MAX_FRAME_SCATTER_DEG:
+                    raise DataError(
+                        f"cameras {parts[c].name!r} and {parts[p].name!r}: the pose of one relative to the other "
+                        f"differs by {scatter:.0f}° (median) between the {len(shared)} frames they share, where a rigid "
+                        "rig's differs by under a degree: views matched as one frame are not of one moment; check "
+                        "the frame numbers (left07 with right07; a dropped or extra image shifts them) or set each "
+                        "view's \"frame\"")
                 step = np.concatenate([rotation.as_rotvec(), np.median(relative[:, 3:], axis=0)])
                 placed[c] = compose(step, pose_p)
+                placed_from[c] = (p, len(shared))
                 progress_made = True
                 break
         if not progress_made:
             # possible still: views a camera's own calibration could not use
             raise DataError(_unlinked_words([parts[c].name for c in range(len(parts)) if c not in placed], parts[0].name))
-    return np.array([placed[c] for c in range(len(parts))])
+    return np.array([placed[c] for c in range(len(parts))]), placed_from
 
 
 def initial_frames(parts: list[CameraViews], extrinsics: np.ndarray, frame_names: list[str]) -> np.ndarray:
@@ -164,9 +205,12 @@ def corners_of(parts: list[CameraViews], frame_names: list[str]) -> Corners:
 
 # ---- the result -------------------------------------------------------------------
 def _rig(parts: list[CameraViews], frame_names: list[str], corners: Corners, result, seconds: float,
-         refine_models: bool) -> Rig:
+         refine_models: bool, placed_from: dict[int, tuple[int, int]]) -> Rig:
     cameras, report = [], {}
-    warnings = []
+    warnings = [f"camera {parts[c].name!r} was placed on the rig from {n} frame{'s' * (n != 1)} shared with camera "
+                f"{parts[p].name!r}: its pose rests on {'that' if n == 1 else 'those'} alone; photograph the board "
+                f"with both at {FEW_SHARED_FRAMES} or more moments" for c, (p, n) in placed_from.items()
+                if n < FEW_SHARED_FRAMES]
     for c, p in enumerate(parts):
         mine = corners.camera == c
         res = result.residuals[mine]

@@ -129,6 +129,9 @@ def test_rig_requests_are_refused_up_front_saying_what_to_do(service, stereo_pai
     twice = simulated_rig([range(0, 8)], seed=3)["cam0"].to_json()
     twice["views"][1]["frame"] = "000"  # two views of one camera at one frame
     double = upload(service, twice, "double.json")
+    other_board = simulated_rig([range(0, 8), range(0, 8)], seed=3)["cam1"].to_json()
+    other_board["board"]["square_size"] = 50.0
+    other = upload(service, other_board, "other.json")
     png = cv2.imencode(".png", np.full((64, 64), 255, np.uint8))[1].tobytes()  # no board: detection fails
     r = c.post("/api/sets", files={"files": ("blank.png", png, "image/png")}, data={"board": "chessboard:9x6:25mm"})
     assert r.status_code == 201, r.text
@@ -147,6 +150,7 @@ def test_rig_requests_are_refused_up_front_saying_what_to_do(service, stereo_pai
         ({"set_ids": [left, right], "reference": "middle"}, "'middle' is not one of the cameras ['left', 'right']"),
         ({"set_ids": [left, apart]}, "share no frame with the reference camera 'left'"),
         ({"set_ids": [left, double]}, "are both frame '000'"),
+        ({"set_ids": [left, other]}, "saw another board than camera 'left': square_size 50.0 against 60.0"),
         ({"set_ids": [left, right], "method": "compare"}, "not for a rig"),
         ({"set_ids": [left, right], "method": "magic"}, "unknown method"),
         ({"set_ids": [left, right], "settings": {"no_such": 1}}, "unknown setting"),

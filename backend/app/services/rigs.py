@@ -3,7 +3,7 @@
 Everything that would fail in the worker for a reason the request already shows is
 refused here, in words, before a job exists: too few or too many cameras, a set that
 is unknown or not ready, names that are repeated or not one per set, a reference that
-is no camera, and cameras whose views share no frame (a frame is a view's ``"frame"``,
+is no camera, cameras that saw different boards, and cameras whose views share no frame (a frame is a view's ``"frame"``,
 else the last run of digits in its name: formats.md §4). The job then reads a copy of
 each set's corners taken now, so a set deleted or detected again later changes nothing.
 """
@@ -15,6 +15,7 @@ from typing import Any
 from calib_core import Observations
 from calib_core.errors import DataError
 from calib_core.json_fields import CAMERA_NAME_RULE, is_camera_name
+from calib_core.rig.calibrate import check_boards
 from calib_core.rig.frames import frames_of, unlinked
 
 from ...base import storage
@@ -55,6 +56,10 @@ def create(ctx: Context, queue: Queue, body: RigJobCreate) -> str:
                             "(or leave it out for the first)")
     cameras = {name: Observations.load(ctx.storage.observations_path(row["id"])) for name, row in zip(names, rows, strict=True)}
     _check_frames(cameras, rows, reference)
+    try:
+        check_boards(cameras, reference)
+    except DataError as exc:
+        raise ApiError(422, f"set_ids: {exc}") from None
 
     job_id = new_id()
     try:

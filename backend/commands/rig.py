@@ -81,6 +81,11 @@ def run(args) -> int:
     cameras = {name: load_observations(path) for name, path in zip(names, args.observations, strict=True)}
     holdout = None if args.holdout is None else {
         name: load_observations(path) for name, path in zip(names, args.holdout, strict=True)}
+    for (name, test), path in zip((holdout or {}).items(), args.holdout or [], strict=True):
+        if tuple(test.image_size) != tuple(cameras[name].image_size):  # said before the calibration, not after
+            raise SettingsError(f"--holdout {path}: its images are {test.image_size[0]}x{test.image_size[1]}, those of "
+                                f"camera {name!r} {cameras[name].image_size[0]}x{cameras[name].image_size[1]}: give "
+                                "each camera's held-out views in the order of the cameras")
     with StageProgress(args.quiet) as progress:
         rig = calibrate_rig(cameras, args.method, args.reference, progress, refine_models=not args.hold_models,
                             outlier_sigma=args.outlier_sigma, **settings)

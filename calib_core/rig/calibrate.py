@@ -19,7 +19,7 @@ from ..methods.common import Progress, named, no_progress, scaled
 from ..observations import Observations
 from ..pipeline import calibrate
 from .bundle import Corners, adjust
-from .frames import frames_of, unlinked
+from .frames import frames_of, padding_hint, unlinked
 from .poses import compose, inverse
 from .rig import Rig, RigCamera, RigFrame, RigMetrics
 
@@ -69,9 +69,10 @@ def calibrate_rig(cameras: dict[str, Observations], method: str = "auto", refere
         raise DataError(f"reference camera {reference!r} is not one of the cameras {names}")
     # another board, duplicate and unshared frames fail before any calibration
     check_boards(cameras, reference)
-    lonely = unlinked({name: frames_of(name, obs.views) for name, obs in cameras.items()}, reference)
+    frames = {name: frames_of(name, obs.views) for name, obs in cameras.items()}
+    lonely = unlinked(frames, reference)
     if lonely:
-        raise DataError(_unlinked_words(lonely, reference))
+        raise DataError(_unlinked_words(lonely, reference) + padding_hint(frames, reference))
     parts = []
     for k, name in enumerate(names):
         part = named(scaled(progress, 0.8 * k / len(names), 0.8 * (k + 1) / len(names)), f"camera {name}")

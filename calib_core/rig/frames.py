@@ -45,3 +45,13 @@ def unlinked(frames: Mapping[str, Collection[str]], reference: str) -> list[str]
                 linked.add(name)
                 todo.append(name)
     return [name for name in frames if name not in linked]
+
+
+def padding_hint(frames: Mapping[str, Collection[str]], reference: str) -> str:
+    """Words for cameras ``unlinked`` leaves out that numbers would link (left7.jpg, right007.jpg):
+    frames are names, compared as written."""
+    as_numbers = {name: {str(int(f)) if f.isdigit() else f for f in seen} for name, seen in frames.items()}
+    if len(unlinked(as_numbers, reference)) < len(unlinked(frames, reference)):
+        return (" (frames are compared as written: '7' and '007' are different frames; number every camera's "
+                "images alike)")
+    return ""

@@ -106,6 +106,15 @@ def test_views_that_are_not_of_one_moment_are_refused():
         calibrate_rig(cameras, "zhang")
 
 
+def test_frames_numbered_without_the_same_padding_are_named_as_the_reason():
+    cameras = simulated_rig([range(0, 8), range(0, 8)])
+    for k, view in enumerate(cameras["cam1"].views):
+        view.name = f"right{k}.png"  # frame '3' where cam0 has '003'
+    with pytest.raises(DataError, match="share no frame") as err:
+        calibrate_rig(cameras, "zhang")
+    assert "'7' and '007' are different frames" in str(err.value)
+
+
 def test_a_camera_placed_from_few_shared_frames_is_named_in_a_warning():
     rig = calibrate_rig(simulated_rig([range(0, 10), range(9, 19)]), "zhang")
     assert rig.diagnostics["warnings"] == [
@@ -234,6 +243,11 @@ def test_cli_writes_the_rig_and_refuses_bad_flags(tmp_path, capsys):
     assert "hold-out:" in capsys.readouterr().out
     assert main(["rig", *paths, "--holdout", paths[0], "-q"]) == 2
     assert "--holdout: expected 2 files" in capsys.readouterr().err
+    small = Observations((640, 480), cameras["cam1"].views, cameras["cam1"].board)
+    small.save(tmp_path / "small.json")
+    assert main(["rig", *paths, "--holdout", paths[0], str(tmp_path / "small.json"), "-q"]) == 2
+    err = capsys.readouterr()
+    assert "its images are 640x480, those of camera 'cam1' 1280x960" in err.err and not err.out  # before calibrating
     assert main(["rig", *paths, "--names", "left", "-q"]) == 2
     assert "expected 2 distinct names" in capsys.readouterr().err
     assert main(["rig", paths[0], "-q"]) == 2

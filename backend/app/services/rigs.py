@@ -16,7 +16,7 @@ from calib_core import Observations
 from calib_core.errors import DataError
 from calib_core.json_fields import CAMERA_NAME_RULE, is_camera_name
 from calib_core.rig.calibrate import check_boards
-from calib_core.rig.frames import frames_of, unlinked
+from calib_core.rig.frames import frames_of, padding_hint, unlinked
 
 from ...base import storage
 from ...base.context import Context
@@ -123,4 +123,4 @@ def _check_frames(cameras: dict[str, Observations], rows: list[dict[str, Any]], 
                           if name in lonely)
         raise ApiError(422, f"camera(s) {which} share no frame with the reference camera {reference!r} or any camera "
                             f"linked to it; {FRAMES_HOW}. Give the views of one moment the same number in every "
-                            "camera's set, or set each view's \"frame\"")
+                            "camera's set, or set each view's \"frame\"" + padding_hint(frames, reference))

@@ -12,6 +12,7 @@ from calib_core.errors import SettingsError
 from calib_core.exports import LEAN_MODELS, MODELS, TARGETS, export
 from calib_core.exports.lean_fit import FitError, save_error_map
 from calib_core.exports.rig import export_rig
+from calib_core.exports.text import beyond_note
 from calib_core.rig import Rig
 from calib_core.rig.rig import FORMAT as RIG_FORMAT
 
@@ -104,7 +105,7 @@ def run(args) -> int:
     files = [str(f) for f in (written, error_map, sidecar) if f is not None]
     if args.json:
         print_json({"format": fmt, "model": fit.name, "consumer_model": done.consumer_model, "exact": fit.exact,
-                    "output": str(written), "error_map": None if error_map is None else str(error_map),
+                    "n_beyond_reach": fit.n_beyond, "output": str(written), "error_map": None if error_map is None else str(error_map),
                     "uncertainty": None if sidecar is None else str(sidecar),
                     "fit_error": None if fit.exact else {"covered": fit.covered.to_json(), "image": fit.image.to_json(),
                                                          "n_beyond_reach": fit.n_beyond, "units": "px"},
@@ -113,15 +114,14 @@ def run(args) -> int:
                     "rectified_camera": None if done.camera is None else done.camera.to_json()})
         return 0
     if fit.exact:
-        print(f"{fmt} / {done.consumer_model} ({fit.name}): exact, the calibration is this model")
+        print(f"{fmt} / {done.consumer_model} ({fit.name}): exact, the calibration is this model{beyond_note(fit)}")
     else:
         choice = "" if not done.tried else ", the closest of " + ", ".join(
             f"{f.name} (rms {f.covered.rms:.4g} px covered, {f.image.rms:.4g} px image)" for f in done.tried
         ) + "; another with --model"
         print(f"{fmt} / {done.consumer_model} ({fit.name}): fitted to the {fit.fitted_to} calibration{choice}")
         print(f"fit error, covered region: {_error(fit.covered)}")
-        beyond = f" ({fit.n_beyond} samples past the model's reach)" if fit.n_beyond else ""
-        print(f"fit error, whole image: {_error(fit.image)}{beyond}")
+        print(f"fit error, whole image: {_error(fit.image)}{beyond_note(fit)}")
     if fmt == "mrcal" and fit.region is None:
         print("note: the calibration records no covered region, so the model has no valid_intrinsics_region; "
               "give --observations OBS.json (its corners) to write one")

@@ -92,6 +92,10 @@ class LeanFit:
     covered_mask: np.ndarray
     exact: bool = False  # the calibration already was this model: nothing fitted
     region: np.ndarray | None = None  # (M, 2) the covered region's polygon in pixels, if known
+    reach_deg: float = 179.0  # how far off axis the model represents rays (``evaluate``'s)
+    # A fitted rational model whose denominator vanishes inside the image, outside the covered
+    # region: the normalised radius of that ring (rays there project to infinity), else None.
+    pole_radius: float | None = None
 
     # The covered region's numbers are the headline (what a user of the export can rely on).
     @property
@@ -126,6 +130,7 @@ class LeanFit:
     def summary(self) -> dict[str, Any]:
         return {"model": self.name, "exact": self.exact, "fitted_to": self.fitted_to,
                 "covered": self.covered.to_json(), "image": self.image.to_json(), "n_beyond_reach": self.n_beyond,
+                "pole_radius": self.pole_radius,
                 # the covered region's, under the names earlier versions wrote
                 "fit_rms_px": self.rms, "fit_max_px": self.max, "fit_p99_px": self.p99, "n_samples": self.n_samples}
 
@@ -221,12 +226,7 @@ def evaluate(model: Projector, cal: Calibration, name: str, reach_deg: float, ex
     w, h = cal.image_size
     return LeanFit(name, model, (int(w), int(h)), cal.method, FitError.of(err[fitted]), FitError.of(err[image]),
                    int(np.sum(known & ~image)), u, v, err.reshape(len(v), len(u)), fitted.reshape(len(v), len(u)),
-                   exact, hull_polygon(covered))
-
-
-def reach_deg(name: str) -> float:
-    """How far off axis the model ``name`` can see (``REACH_DEG`` of its kind)."""
-    return REACH_DEG[LEAN_MODELS[name][0] if name in LEAN_MODELS else name]
+                   exact, hull_polygon(covered), reach_deg)
 
 
 def error_at(fit: LeanFit, cal: Calibration, pixels: np.ndarray) -> np.ndarray:
@@ -234,7 +234,7 @@ def error_at(fit: LeanFit, cal: Calibration, pixels: np.ndarray) -> np.ndarray:
     calibration has no ray or the model cannot represent it."""
     pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
     rays = cal.rays(pixels)
-    ok = reachable(rays, reach_deg(fit.name))
+    ok = reachable(rays, fit.reach_deg)
     err = np.full(len(pixels), np.nan)
     with np.errstate(all="ignore"):
         err[ok] = 0.0 if fit.exact else np.linalg.norm(fit.model.project(rays[ok]) - pixels[ok], axis=1)
@@ -268,9 +268,39 @@ def fit_lean(cal: Calibration, name: str, grid: tuple[int, int] = GRID, covered:
         five = _fit(OpenCVModel(k, np.zeros(5)), rays[ok], target[ok], name)
         padded = OpenCVModel(five.intrinsics, np.concatenate([five.coefficients, np.zeros(n - 5)]))
         candidates.append(_fit(padded, rays[ok], target[ok], name))
+    # A rational denominator that vanishes on a ring throws the rays near it to infinity, and a grid
+    # of samples steps over a thin ring. A fit with such a ring in the covered region is no
+    # candidate; one with it only outside is taken when no fit is free of it, and says so.
+    def r2_of(mask: np.ndarray) -> float:
+        return float(np.max(np.sum((rays[mask, :2] / rays[mask, 2:]) ** 2, axis=1), initial=0.0))
+
+    image_r2, covered_r2 = r2_of(reachable(rays, REACH_DEG[kind])), r2_of(ok)
+    poles = [pole_radius(m, image_r2) if kind == "opencv" else None for m in candidates]
+    usable = [k for k, p in enumerate(poles) if p is None] or [
+        k for k, p in enumerate(poles) if p is not None and p * p > covered_r2]
+    if not usable:
+        r = min(p for p in poles if p is not None)
+        raise LeanFitError(f"every fit of {name} divides by zero inside the corners' region (its rational denominator "
+                           f"1 + k4·r² + k5·r⁴ + k6·r⁶ vanishes at r = {r:.3f}, a ring round the principal point): "
+                           "export as opencv5 or kb4")
     with np.errstate(all="ignore"):
-        cost = [np.nansum((m.project(rays[ok]) - target[ok]) ** 2) for m in candidates]
-    return evaluate(candidates[int(np.nanargmin(cost))], cal, name, REACH_DEG[kind], False, grid, covered)
+        cost = [np.nansum((candidates[k].project(rays[ok]) - target[ok]) ** 2) for k in usable]
+    best = usable[int(np.nanargmin(cost))]
+    fit = evaluate(candidates[best], cal, name, REACH_DEG[kind], False, grid, covered)
+    return dataclasses.replace(fit, pole_radius=poles[best])
+
+
+def pole_radius(model: OpenCVModel, r2_max: float) -> float | None:
+    """The smallest normalised radius r (r² ≤ ``r2_max``) where an OpenCV model's rational
+    denominator 1 + k4 r² + k5 r⁴ + k6 r⁶ vanishes; None where it has no such root (or no
+    denominator: fewer than 8 coefficients)."""
+    if len(model.coefficients) < 8:
+        return None
+    k4, k5, k6 = (float(c) for c in model.coefficients[5:8])
+    roots = np.roots(np.trim_zeros(np.array([k6, k5, k4, 1.0]), "f"))
+    real = roots[np.abs(roots.imag) <= 1e-9 * np.maximum(np.abs(roots), 1.0)].real
+    inside = real[(real > 0) & (real <= r2_max)]
+    return float(np.sqrt(inside.min())) if len(inside) else None
 
 
 def _radial_start(kind: str, n: int, k: np.ndarray, rays: np.ndarray, target: np.ndarray):

@@ -21,8 +21,8 @@ The fit keeps the calibration's focal lengths and principal point as the core
 and solves for the control points by linear least squares (the projection is
 linear in them), on a dense grid of the whole image, with a light
 second-difference penalty that only decides knots no sample reaches. The field
-of view spans every ray of the image (``fov_x_deg`` is whole degrees: rounded
-up), and the knot density is the first of ``DENSITIES`` that fits the covered
+of view spans every ray of the image up to 20° past the covered region's (``fov_x_deg``
+is whole degrees: rounded up), and the knot density is the first of ``DENSITIES`` that fits the covered
 region to ``TARGET_MAX_PX``.
 """
 from __future__ import annotations
@@ -34,12 +34,13 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..calibration import Calibration
-from .lean_fit import REACH_DEG, LeanFit, LeanFitError, evaluate, reachable
+from .lean_fit import REACH_DEG, LeanFit, LeanFitError, covered_pixels, evaluate, reachable, sample_grid
 
 DENSITIES = (12, 16, 20, 26, 32, 40)  # knots across (Nx) tried in turn
 TARGET_MAX_PX = 0.01  # the first density that fits the covered region this well is kept
 SAMPLES_PER_INTERVAL = 5  # fit samples per knot interval, each way
 SMOOTHING = 1e-6  # weight of the second differences of the control points (decides unsupported knots)
+EXTRAPOLATED_DEG = 20.0  # the knots reach this far off axis past the covered region's rays, at most
 NAME = "splined"
 
 
@@ -125,8 +126,9 @@ def _second_differences(nx: int, ny: int) -> sp.csr_matrix:
 def fit_splined(cal: Calibration, covered: np.ndarray | None = None) -> LeanFit:
     """The splined model closest to ``cal`` (module text), scored like every export."""
     best: LeanFit | None = None
+    limit = _angle_limit(cal, covered_pixels(cal, covered))
     for nx in DENSITIES:
-        fit = evaluate(_fit_density(cal, nx), cal, NAME, REACH_DEG[NAME], covered=covered)
+        fit = evaluate(_fit_density(cal, nx, limit), cal, NAME, limit, covered=covered)  # no knots past the limit
         if best is None or fit.covered.rms < best.covered.rms:
             best = fit
         if fit.covered.max <= TARGET_MAX_PX:
@@ -135,7 +137,21 @@ def fit_splined(cal: Calibration, covered: np.ndarray | None = None) -> LeanFit:
     return best
 
 
-def _fit_density(cal: Calibration, nx: int) -> SplinedStereographic:
+def _angle_limit(cal: Calibration, covered: np.ndarray | None) -> float:
+    """How far off axis (degrees) the knots reach: every ray of the image, but no further than
+    EXTRAPOLATED_DEG past the covered region's. Outside a fisheye's image circle a calibration
+    extrapolates its rays to 176-179° (a 200° lens): knots spread that wide left its lit disc
+    about one interval (74 px rms)."""
+    if covered is None:
+        return REACH_DEG[NAME]
+    u, v, rays, ok = sample_grid(cal, covered=covered, max_angle_deg=REACH_DEG[NAME])
+    if not ok.any():
+        return REACH_DEG[NAME]
+    seen = float(np.degrees(np.arccos(np.clip(rays[ok, 2], -1.0, 1.0))).max())
+    return min(REACH_DEG[NAME], seen + EXTRAPOLATED_DEG)
+
+
+def _fit_density(cal: Calibration, nx: int, max_angle_deg: float = REACH_DEG[NAME]) -> SplinedStereographic:
     w, h = cal.image_size
     n_samples = SAMPLES_PER_INTERVAL * (nx - 3)
     gu = max(n_samples, 64)
@@ -143,7 +159,7 @@ def _fit_density(cal: Calibration, nx: int) -> SplinedStereographic:
     uu, vv = np.meshgrid(np.linspace(0, w - 1, gu), np.linspace(0, h - 1, gv))
     pixels = np.column_stack([uu.ravel(), vv.ravel()])
     rays = cal.rays(pixels)
-    ok = reachable(rays, REACH_DEG[NAME])
+    ok = reachable(rays, max_angle_deg)
     if ok.sum() < 100:
         raise LeanFitError(f"only {int(ok.sum())} rays of the image could be unprojected; too few to fit mrcal's "
                            "splined model")

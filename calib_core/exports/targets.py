@@ -19,7 +19,7 @@ from ..errors import SettingsError
 from ..products.rectify import RectifiedCamera, rectified_camera
 from .colmap import COLMAP_MODELS, cameras_txt
 from .kalibr import KALIBR_MODELS, camchain_yaml
-from .lean_fit import LEAN_MODELS, LeanFit, exact_name, fit_lean, parametric_part
+from .lean_fit import LEAN_MODELS, LeanFit, LeanFitError, exact_name, fit_lean, parametric_part
 from .mrcal import MRCAL_MODELS, cameramodel
 from .nerfstudio import NERFSTUDIO_MODELS, transforms_json
 from .opencv_yaml import lean_yaml
@@ -81,9 +81,13 @@ def fit_model(cal: Calibration, name: str, covered: np.ndarray | None = None) ->
     return fit_lean(cal, name, covered=covered)
 
 
-def closeness(fit: LeanFit) -> float:
-    """How far an export strays, for choosing between candidates (px): the larger rms."""
-    return max(fit.covered.rms, fit.image.rms)
+def closeness(fit: LeanFit) -> tuple[bool, float, float]:
+    """How far an export strays, for choosing between candidates: first whether it throws a ring of
+    the image's rays to infinity (``pole_radius``), then the share of the image's rays it cannot
+    represent at all (to a hundredth: its error there is no number, and a model that reaches less
+    would otherwise score better on what is left), then the larger rms (px)."""
+    return (fit.pole_radius is not None, round(fit.n_beyond / max(fit.image.n + fit.n_beyond, 1), 2),
+            max(fit.covered.rms, fit.image.rms))
 
 
 def export(cal: Calibration, to: str, model: str = "auto", covered: np.ndarray | None = None,
@@ -103,7 +107,15 @@ def export(cal: Calibration, to: str, model: str = "auto", covered: np.ndarray |
     elif own in target.models:
         fit = fit_model(cal, own, covered)
     else:
-        tried = sorted((fit_model(cal, m, covered) for m in target.auto), key=closeness)
+        tried, why_not = [], []
+        for m in target.auto:
+            try:
+                tried.append(fit_model(cal, m, covered))
+            except LeanFitError as exc:  # another candidate may serve
+                why_not.append(str(exc))
+        if not tried:
+            raise LeanFitError("; ".join(why_not))
+        tried.sort(key=closeness)
         fit = tried[0]
     camera = None
     if to == "ros":

@@ -9,6 +9,7 @@ tried are kept, so a reader is told what the choice was between.
 """
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -19,7 +20,7 @@ from ..errors import SettingsError
 from ..products.rectify import RectifiedCamera, rectified_camera
 from .colmap import COLMAP_MODELS, cameras_txt
 from .kalibr import KALIBR_MODELS, camchain_yaml
-from .lean_fit import LEAN_MODELS, LeanFit, LeanFitError, exact_name, fit_lean, parametric_part
+from .lean_fit import LEAN_MODELS, LeanFit, LeanFitError, evaluate, exact_name, fit_lean, parametric_part
 from .mrcal import MRCAL_MODELS, cameramodel
 from .nerfstudio import NERFSTUDIO_MODELS, transforms_json
 from .opencv_yaml import lean_yaml
@@ -38,6 +39,9 @@ class Target:
     auto: tuple[str, ...]  # the candidates when the calibration is none of ``models``
     file_name: str  # the consumer's usual name for the file
     write: Callable[[LeanFit, Calibration, RectifiedCamera | None], str]
+    # How far off axis (degrees) the consumer takes a model's rays, where it reaches further than
+    # OpenCV computes that model (``lean_fit.REACH_DEG``)
+    reach: dict[str, float] = field(default_factory=dict)
 
 
 def _opencv(fit: LeanFit, source: Calibration, camera: RectifiedCamera | None) -> str:
@@ -54,7 +58,8 @@ TARGETS: dict[str, Target] = {t.name: t for t in (
     Target("colmap", "COLMAP cameras.txt", COLMAP_MODELS, ("opencv8", "kb4"), "cameras.txt",
            lambda fit, source, camera: cameras_txt(fit)),
     Target("nerfstudio", "nerfstudio transforms.json", NERFSTUDIO_MODELS, ("opencv5", "kb4"), "transforms.json",
-           lambda fit, source, camera: transforms_json(fit)),
+           lambda fit, source, camera: transforms_json(fit),
+           reach={"kb4": 179.0}),  # its OPENCV_FISHEYE casts rays up to θ = π (cameras.py), not only in front
     Target("kalibr", "Kalibr camchain YAML", KALIBR_MODELS, ("opencv4", "kb4"), "camchain.yaml",
            lambda fit, source, camera: camchain_yaml(fit)),
 )}
@@ -100,17 +105,25 @@ def export(cal: Calibration, to: str, model: str = "auto", covered: np.ndarray |
     if model != "auto" and model not in target.models:
         raise SettingsError(f"{target.label} has no {model} model; it knows {', '.join(target.models)}")
     cal = parametric_part(cal) or cal  # a hybrid with a held zero field is its core, exactly
+
+    def fitted(name: str) -> LeanFit:
+        fit = fit_model(cal, name, covered)
+        if name not in target.reach:
+            return fit
+        scored = evaluate(fit.model, cal, name, target.reach[name], fit.exact, covered=covered)
+        return dataclasses.replace(scored, pole_radius=fit.pole_radius)
+
     tried: list[LeanFit] = []
     own = exact_name(cal)
     if model != "auto":
-        fit = fit_model(cal, model, covered)
+        fit = fitted(model)
     elif own in target.models:
-        fit = fit_model(cal, own, covered)
+        fit = fitted(own)
     else:
         tried, why_not = [], []
         for m in target.auto:
             try:
-                tried.append(fit_model(cal, m, covered))
+                tried.append(fitted(m))
             except LeanFitError as exc:  # another candidate may serve
                 why_not.append(str(exc))
         if not tried:

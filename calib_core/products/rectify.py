@@ -166,6 +166,8 @@ def _border_boxes(cal: Calibration) -> tuple[Box, Box] | str:
     b = border_normalised(cal)
     if any(np.isnan(s).all() for s in b.values()):
         return "the model cannot unproject a whole side of the photo's border (it folds over before the border)"
+    if any(np.isnan(s).any() for s in b.values()):  # a box from the rest would hold pixels with no ray
+        return "the model cannot unproject part of the photo's border (it folds over before the border's corners)"
     # Inner box: the most inward point of each side (OpenCV's icvGetRectangles does the same).
     left, right = np.nanmax(b["left"][:, 0]), np.nanmin(b["right"][:, 0])
     top, bottom = np.nanmax(b["top"][:, 1]), np.nanmin(b["bottom"][:, 1])

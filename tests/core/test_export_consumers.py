@@ -236,6 +236,11 @@ def test_a_200_degree_fisheye_reaches_mrcal_within_its_image_circle(tmp_path, ca
     assert done.fit.name == "splined" and done.fit.covered.max < 0.05
     assert done.fit.reach_deg < 150 and done.fit.n_beyond > 0
     mrcal_check(cal, done, tmp_path)
+    # nerfstudio casts Kannala-Brandt rays round to θ = π: the whole lit image, exactly
+    meta = consumers.nerfstudio_camera(export(cal, "nerfstudio").text)
+    exact = export(cal, "nerfstudio").fit
+    assert exact.exact and exact.reach_deg == 179.0 and exact.image.n > export(cal, "kalibr").fit.image.n
+    check_against(cal, exact, lambda r: consumers.nerfstudio_project(meta, r))
     cal.save(tmp_path / "kb.json")
     assert cli(["export", str(tmp_path / "kb.json"), "--to", "kalibr", "-o", str(tmp_path / "camchain.yaml")]) == 0
     said = capsys.readouterr().out

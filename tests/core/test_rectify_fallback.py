@@ -6,7 +6,7 @@ The two lenses are the calibrations that used to be refused, written out: the
 GoPro Hero3 set under ``zhang`` (5 coefficients: the polynomial folds back 62°
 off axis, before the photo's sides) and OpenCV's ChArUco sample under
 ``fisheye`` (four views, as calibrated before such sets were refused as degenerate: Kannala–Brandt
-coefficients that fold 28° off axis)."""
+coefficients that fold 28° off axis); a third folds only near the frame's corners."""
 from __future__ import annotations
 
 import numpy as np
@@ -29,7 +29,14 @@ CHARUCO_FISHEYE = Calibration(
     FisheyeModel([458.68058508, 461.26962323, 317.87168607, 271.18819479, 0.0],
                  [0.64974082, -5.10419581, 35.81459822, -85.990675]),
     (640, 480), "fisheye", diagnostics=Diagnostics(coverage_hull=[[182.81, 80.55], [455.48, 80.55], [455.48, 373.12], [182.81, 373.12]]))
-FOLDING = {"gopro-zhang": GOPRO_ZHANG, "charuco-fisheye": CHARUCO_FISHEYE}
+# A rational calibration of the decentred lens (seed 0) whose border folds near the frame's corners
+# only: the box of the border's other unprojected points held 2 910 pixels with no source at alpha 0.
+DECENTRED_RATIONAL = Calibration(
+    OpenCVModel([308.008725, 304.930527, 519.801255, 625.15212, 0.0],
+                [0.7447623, -0.24264038, 0.00312917, -0.00438958, -0.00492762, 0.68376454, -0.29996288, 0.01413471]),
+    (1024, 1280), "rational", diagnostics=Diagnostics(coverage_hull=[[1.69, 4.45], [1022.56, 4.45], [1022.56, 1277.2],
+                                                                     [1.69, 1277.2]]))
+FOLDING = {"gopro-zhang": GOPRO_ZHANG, "charuco-fisheye": CHARUCO_FISHEYE, "decentred-rational": DECENTRED_RATIONAL}
 
 
 def fold_radius(model) -> float:

@@ -52,6 +52,9 @@ class FisheyeModel(ParametricModel):
             raise FormatError("distortion.coefficients: expected a non-empty list of finite numbers [k1, ..., kn]")
         if base != "pinhole":
             raise FormatError("base: the fisheye distortion type is defined on the pinhole base only")
+        if abs(float(intrinsics[4])) > 0:  # read as 0 it projected elsewhere than the file says, without a word
+            raise FormatError("intrinsics.skew: freecal reads the fisheye distortion type with skew 0 only "
+                              f"(got {float(intrinsics[4]):g}; cv2.fisheye's alpha = skew / fx)")
         return cls(intrinsics, coeffs)
 
 

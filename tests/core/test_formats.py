@@ -156,6 +156,18 @@ def test_unknown_calibration_type_is_rejected(calibration):
         Calibration.from_json(doc)
 
 
+@pytest.mark.parametrize("distortion", [{"type": "fisheye", "coefficients": [0.01, 0.0, 0.0, 0.0]},
+                                        {"type": "opencv", "coefficients": [0.01, 0.0, 0.0, 0.0, 0.0]}])
+def test_a_parametric_calibration_with_skew_is_refused_not_read_without_it(calibration, distortion):
+    """formats.md puts skew into every type's pixels (cv2.fisheye's alpha = skew / fx); freecal's
+    parametric models have none, and a fisheye file's skew was read as 0: it projected 3 px
+    elsewhere than the file says, without a word."""
+    doc = {**calibration.to_json(), "distortion": distortion, "base": "pinhole"}
+    doc["intrinsics"] = {**doc["intrinsics"], "skew": 3.0}
+    with pytest.raises(FormatError, match="intrinsics.skew"):
+        Calibration.from_json(doc)
+
+
 def test_a_corners_vnl_cell_that_is_no_number_is_named_in_words():
     from calib_core.board import BoardSpec
     from calib_core.imports.mrcal_corners import read_corners_vnl

@@ -19,7 +19,7 @@ from ..products.rectify import RectifiedCamera, rectified_camera
 from .lean_fit import LeanFit
 from .text import fit_note, numbers
 
-ROS_MODELS = {"opencv5": "plumb_bob", "opencv8": "rational_polynomial", "kb4": "equidistant"}
+ROS_MODELS = {"opencv4": "plumb_bob", "opencv5": "plumb_bob", "opencv8": "rational_polynomial", "kb4": "equidistant"}
 
 
 def _matrix(name: str, m: np.ndarray) -> str:
@@ -40,7 +40,10 @@ def ros_yaml(fit: LeanFit, camera_name: str = "freecal", camera: RectifiedCamera
     fx, fy, cx, cy, _ = cal.model.intrinsics
     K = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
     P = np.hstack([camera.matrix, np.zeros((3, 1))])
-    coeffs = np.asarray(fit.parametric.coefficients, dtype=np.float64).reshape(1, -1)
+    coeffs = np.asarray(fit.parametric.coefficients, dtype=np.float64)
+    if fit.name == "opencv4":  # plumb_bob's five, k3 = 0: the same model exactly
+        coeffs = np.append(coeffs, 0.0)
+    coeffs = coeffs.reshape(1, -1)
     note = f"# rectified camera (P): {camera.note}\n" if camera.note else ""
     return (f"# {fit_note(fit)}\n" + note +
             f"image_width: {w}\nimage_height: {h}\ncamera_name: {camera_name}\n"

@@ -157,10 +157,11 @@ def test_mrcal_from_kalibr_reads_our_radtan_camchain(tmp_path):
 
 
 # ---- ROS --------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("model,distortion", [("opencv5", "plumb_bob"), ("kb4", "equidistant")])
+@pytest.mark.parametrize("model,distortion", [("opencv4", "plumb_bob"), ("opencv5", "plumb_bob"), ("kb4", "equidistant")])
 def test_ros_camera_info_schema_projection_and_rectification_map(model, distortion):
     cal = EXACT[model]()
     done = export(cal, "ros")
+    assert done.fit.exact  # 4 coefficients: plumb_bob with k3 = 0 (it was fitted as rational_polynomial)
     info = consumers.ros_camera_info(done.text)
     assert info["distortion_model"] == distortion and (info["image_width"], info["image_height"]) == tuple(cal.image_size)
     k, d, r, p = (info[n] for n in ("camera_matrix", "distortion_coefficients", "rectification_matrix", "projection_matrix"))

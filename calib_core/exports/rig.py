@@ -12,11 +12,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..errors import SettingsError
+from ..errors import CalibError, SettingsError
 from ..rig import Rig
 from ..rig.poses import compose, inverse
 from .kalibr import camera_entry
-from .targets import Export, export
+from .targets import Export, closeness, export
 from .text import fit_note
 
 RIG_TARGETS = ("kalibr", "opencv")
@@ -39,7 +39,30 @@ def export_rig(rig: Rig, to: str, model: str = "auto") -> RigExport:
     if len(rig.cameras) != 2:
         raise SettingsError(f"OpenCV's stereo file holds two cameras; this rig has {len(rig.cameras)}: "
                             "use --to kalibr for every camera in one camchain")
+    if model == "auto" and len({_family(e) for e in done}) > 1:
+        done = _one_family(rig, done)
     return RigExport(to, _stereo(rig, done), done)
+
+
+def _family(e: Export) -> str:
+    return "fisheye" if e.fit.name == "kb4" else "opencv"
+
+
+def _one_family(rig: Rig, done: list[Export]) -> list[Export]:
+    """Both cameras as OpenCV's model, or both as Kannala–Brandt: cv2.stereoRectify takes the one,
+    cv2.fisheye.stereoRectify the other, and neither a pair of both. Of the two, the one whose
+    worse camera strays least (``closeness``)."""
+    pairs = []
+    for name, family in (("opencv8", "opencv"), ("kb4", "fisheye")):
+        try:
+            pairs.append([e if _family(e) == family else export(cam.calibration, "opencv", name)
+                          for cam, e in zip(rig.cameras, done, strict=True)])
+        except CalibError:  # a camera this model cannot take (a rational fit with a pole among its corners)
+            continue
+    if not pairs:
+        raise SettingsError("the two cameras take different OpenCV models (one fisheye), and neither model fits both: "
+                            "a stereo pair for cv2.stereoRectify needs one; export each camera alone")
+    return min(pairs, key=lambda pair: max(closeness(e.fit) for e in pair))
 
 
 def _matrix(pose: np.ndarray) -> np.ndarray:
@@ -90,5 +113,6 @@ def _stereo(rig: Rig, done: list[Export]) -> str:
         fs.write(f"fit_{k}", fit_note(e.fit))
     fs.write("R", Rotation.from_rotvec(relative[:3]).as_matrix())
     fs.write("T", relative[3:].reshape(3, 1))
+    fs.write("T_units", str(first.calibration.provenance.get("tvec_units", "the board's units")))
     fs.write("rms_px", float(rig.metrics.rmse))
     return fs.releaseAndGetString()

@@ -5,6 +5,7 @@ saying why."""
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 
 import cv2
@@ -19,6 +20,7 @@ from calib_core.errors import DataError, FormatError, SettingsError
 from calib_core.models import camera
 from calib_core.models.opencv import OpenCVModel
 from calib_core.observations import Observations, View
+from calib_core.pipeline import calibrate
 from calib_core.provenance import UNKNOWN_UNITS
 from calib_core.rig import Rig, calibrate_rig, evaluate_rig, frame_of
 
@@ -262,7 +264,8 @@ def test_rig_exports_read_by_opencv_and_kalibr_readers(tmp_path, capsys):
 
     from .consumers import kalibr_camera, kalibr_project
 
-    rig = calibrate_rig(simulated_rig([range(0, 10)] * 3, seed=4), "zhang")
+    cameras_of_pair = simulated_rig([range(0, 10)] * 3, seed=4)
+    rig = calibrate_rig(cameras_of_pair, "zhang")
     frame = rig.frames[0]
     board_in_ref = camera.rotate(frame.rvec, BOARD) + frame.tvec
     # Kalibr: every camera, each placed from the one before, in metres (the rig's board is in mm);
@@ -295,6 +298,15 @@ def test_rig_exports_read_by_opencv_and_kalibr_readers(tmp_path, capsys):
     uv, _ = cv2.projectPoints(BOARD, cv2.Rodrigues(m["R"] @ r1)[0], m["R"] @ frame.tvec.reshape(3, 1) + m["T"], m["M2"], m["D2"])
     assert np.max(np.abs(uv.reshape(-1, 2) - pair.project("cam1", BOARD, frame.rvec, frame.tvec))) < 1e-6
     assert cv2.stereoRectify(m["M1"], m["D1"], m["M2"], m["D2"], size, m["R"], m["T"])[0].shape == (3, 3)
+    assert fs.getNode("T_units").string() == "mm"
+    # a pair of a fisheye and an OpenCV camera: neither cv2.stereoRectify nor cv2.fisheye.stereoRectify takes it,
+    # so both are written as one model (here OpenCV's: the fisheye camera's lens is OpenCV's own)
+    cam1 = pair.cameras[1]
+    kb = calibrate(Observations(SIZE, cameras_of_pair["cam1"].views, dict(BOARD_SPEC)), "fisheye")
+    mixed = Rig(pair.reference, [pair.cameras[0], dataclasses.replace(cam1, calibration=kb)], pair.frames, pair.metrics,
+                pair.diagnostics)
+    done = export_rig(mixed, "opencv")
+    assert [e.fit.name for e in done.cameras] == ["opencv5", "opencv8"] and not done.cameras[1].fit.exact
     # the command: a rig file goes through freecal export too
     rig_path = tmp_path / "rig.json"
     rig.save(rig_path)

@@ -126,7 +126,8 @@ def parameter_table(model: CameraModel, cov: np.ndarray | None) -> list[dict[str
         return rows
     for i, name in enumerate(INTRINSICS[:4]):
         add(name, "intrinsics", i, "px")
-    add("skew", "intrinsics", None, "px", 0.0, "0 by the model's definition (as OpenCV's)")
+    skew = float(parametric.intrinsics[4])
+    add("skew", "intrinsics", None, "px", skew, "held: 0 in a fit, as OpenCV's" if skew == 0 else "held, as the file gave it")
     names = OPENCV_NAMES if isinstance(parametric, OpenCVModel) else tuple(f"k{i + 1}" for i in range(99))
     for j in range(len(parametric.coefficients)):
         unit = "rad" if names[j].startswith("τ") else ""

@@ -146,8 +146,11 @@ def parametric_part(cal: Calibration) -> Calibration | None:
 
 
 def exact_name(cal: Calibration) -> str | None:
-    """The lean-model name ``cal`` already is (``opencv5`` …, ``kb4``), or None."""
+    """The lean-model name ``cal`` already is (``opencv5`` …, ``kb4``), or None: also for a
+    camera with skew (read from a file), which the consumers' OpenCV models have not."""
     m = cal.model
+    if isinstance(m, (OpenCVModel, FisheyeModel)) and m.intrinsics[4] != 0:
+        return None
     if isinstance(m, OpenCVModel):
         return f"opencv{len(m.coefficients)}"
     if isinstance(m, FisheyeModel) and len(m.coefficients) == 4:

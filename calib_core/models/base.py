@@ -176,12 +176,13 @@ def fitted_parameter_count(model: CameraModel) -> int:
 
 
 class ParametricModel(CameraModel):
-    """A model with parameters ``[fx, fy, cx, cy, coefficients…]``, skew 0
-    (OpenCV's and Kannala–Brandt's)."""
+    """A model with parameters ``[fx, fy, cx, cy, coefficients…]`` (OpenCV's and
+    Kannala–Brandt's). Its skew is not fitted: 0 in every fit freecal makes, as
+    OpenCV has it, and kept where a file read gives another (formats.md puts it
+    into every type's pixels: cv2.fisheye's ``alpha`` is skew / fx)."""
 
     def __init__(self, intrinsics: Any, coefficients: Any):
         self.intrinsics = np.asarray(intrinsics, dtype=np.float64).copy()
-        self.intrinsics[4] = 0.0
         self.coefficients = np.asarray(coefficients, dtype=np.float64).copy()
 
     @property
@@ -192,7 +193,7 @@ class ParametricModel(CameraModel):
         return np.concatenate([self.intrinsics[:4], self.coefficients])
 
     def with_params(self, x: np.ndarray) -> Self:
-        return type(self)(np.append(x[:4], 0.0), x[4:])
+        return type(self)(np.append(x[:4], self.intrinsics[4]), x[4:])
 
     def exact_parametric(self) -> ParametricModel:
         return self
@@ -203,13 +204,14 @@ class ParametricModel(CameraModel):
         ∂xd/∂xn (N, 2, 2) and ∂xd/∂coefficients (N, 2, ≥ n)."""
 
     def pixel_of(self, xn: np.ndarray, jacobian: bool = False):
-        fx, fy, cx, cy, _ = self.intrinsics
+        fx, fy, cx, cy, s = self.intrinsics
         if not jacobian:
             xd = self.distort_normalised(xn)
-            return np.stack([fx * xd[:, 0] + cx, fy * xd[:, 1] + cy], axis=-1)
+            u = fx * xd[:, 0] + cx if s == 0 else fx * xd[:, 0] + s * xd[:, 1] + cx
+            return np.stack([u, fy * xd[:, 1] + cy], axis=-1)
         xd, d_xd, d_k = self.distort_normalised(xn, jacobian=True)
         return _pixel_rows(np.ascontiguousarray(xd), np.ascontiguousarray(d_xd), np.ascontiguousarray(d_k),
-                           len(self.coefficients), fx, fy, cx, cy)
+                           len(self.coefficients), fx, fy, cx, cy, s)
 
 
 @njit(cache=True, nogil=True)
@@ -226,10 +228,11 @@ def _chained(d_uv, d_xn):  # pragma: no cover (compiled)
 
 
 @njit(cache=True, nogil=True)
-def _pixel_rows(xd, d_xd, d_k, nk, fx, fy, cx, cy):  # pragma: no cover (compiled)
+def _pixel_rows(xd, d_xd, d_k, nk, fx, fy, cx, cy, s):  # pragma: no cover (compiled)
     """``ParametricModel.pixel_of``'s pixels (N, 2), ∂uv/∂xn (N, 2, 2) and
     parameter Jacobian rows: u on fx, cx and the coefficients, v on fy, cy and
-    the coefficients (one pass instead of a dozen array copies)."""
+    the coefficients (one pass instead of a dozen array copies). The skew s
+    (held) adds s·yd to u; the branches keep a skew-free camera's arithmetic as it was."""
     n = len(xd)
     uv = np.empty((n, 2))
     d_uv = np.empty((n, 2, 2))
@@ -246,6 +249,12 @@ def _pixel_rows(xd, d_xd, d_k, nk, fx, fy, cx, cy):  # pragma: no cover (compile
             for k in range(nk):
                 cols[i, r, 2 + k] = 4 + k
                 vals[i, r, 2 + k] = f * d_k[i, r, k]
+        if s != 0.0:
+            uv[i, 0] += s * xd[i, 1]
+            d_uv[i, 0, 0] += s * d_xd[i, 1, 0]
+            d_uv[i, 0, 1] += s * d_xd[i, 1, 1]
+            for k in range(nk):
+                vals[i, 0, 2 + k] += s * d_k[i, 1, k]
     return uv, d_uv, cols, vals
 
 

@@ -4,7 +4,7 @@ Internally the model sits on the equidistant base, ``xn = θ (cos φ, sin φ)``,
 so that ``xd = xn · (1 + k1 |xn|² + …)``: identical to the format's pinhole
 form (θ = atan r) in front of the camera, and still defined past 90° off axis,
 which the initialisation of lenses beyond 180° needs.
-Parameters: ``[fx, fy, cx, cy, k1 … kn]`` (skew fixed at 0, as in OpenCV).
+Parameters: ``[fx, fy, cx, cy, k1 … kn]`` (skew held: 0 in a fit, as in OpenCV).
 """
 from __future__ import annotations
 
@@ -52,9 +52,6 @@ class FisheyeModel(ParametricModel):
             raise FormatError("distortion.coefficients: expected a non-empty list of finite numbers [k1, ..., kn]")
         if base != "pinhole":
             raise FormatError("base: the fisheye distortion type is defined on the pinhole base only")
-        if abs(float(intrinsics[4])) > 0:  # read as 0 it projected elsewhere than the file says, without a word
-            raise FormatError("intrinsics.skew: freecal reads the fisheye distortion type with skew 0 only "
-                              f"(got {float(intrinsics[4]):g}; cv2.fisheye's alpha = skew / fx)")
         return cls(intrinsics, coeffs)
 
 

@@ -188,6 +188,4 @@ class OpenCVModel(ParametricModel):
                               "[k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4, tx, ty] (a prefix)")
         if base != "pinhole":
             raise FormatError("base: the opencv distortion type is defined on the pinhole base only")
-        if abs(float(intrinsics[4])) > 0:
-            raise FormatError("intrinsics.skew: the opencv distortion type has no skew; expected 0")
         return cls(intrinsics, coeffs)

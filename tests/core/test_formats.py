@@ -156,16 +156,48 @@ def test_unknown_calibration_type_is_rejected(calibration):
         Calibration.from_json(doc)
 
 
-@pytest.mark.parametrize("distortion", [{"type": "fisheye", "coefficients": [0.01, 0.0, 0.0, 0.0]},
-                                        {"type": "opencv", "coefficients": [0.01, 0.0, 0.0, 0.0, 0.0]}])
-def test_a_parametric_calibration_with_skew_is_refused_not_read_without_it(calibration, distortion):
-    """formats.md puts skew into every type's pixels (cv2.fisheye's alpha = skew / fx); freecal's
-    parametric models have none, and a fisheye file's skew was read as 0: it projected 3 px
-    elsewhere than the file says, without a word."""
-    doc = {**calibration.to_json(), "distortion": distortion, "base": "pinhole"}
-    doc["intrinsics"] = {**doc["intrinsics"], "skew": 3.0}
-    with pytest.raises(FormatError, match="intrinsics.skew"):
-        Calibration.from_json(doc)
+@pytest.mark.parametrize("kind", ["fisheye", "opencv"])
+def test_a_parametric_calibration_with_skew_projects_as_the_format_says(calibration, kind):
+    """formats.md puts skew into every type's pixels, u = fx·xd + skew·yd + cx (cv2.fisheye's alpha =
+    skew / fx). A fisheye file's skew was read as 0 (3 px elsewhere, without a word) and an opencv
+    file with one refused: both now project as written, their Jacobians with them, and export fitted."""
+    import cv2
+
+    from calib_core.exports.lean_fit import exact_name
+
+    coefficients = [0.05, -0.01, 0.002, -0.001] + ([0.01] if kind == "opencv" else [])
+    doc = {**calibration.to_json(), "distortion": {"type": kind, "coefficients": coefficients}, "base": "pinhole"}
+    doc["intrinsics"] = {"fx": 300.0, "fy": 310.0, "cx": 512.0, "cy": 640.0, "skew": 3.0}
+    cal = Calibration.from_json(doc)
+    rng = np.random.default_rng(0)
+    pc = np.column_stack([rng.uniform(-0.8, 0.8, (50, 2)), np.ones(50)])
+    k = np.array([[300.0, 0.0, 512.0], [0.0, 310.0, 640.0], [0.0, 0.0, 1.0]])
+    if kind == "fisheye":
+        want = cv2.fisheye.projectPoints(pc.reshape(1, -1, 3), np.zeros(3), np.zeros(3), k, np.array(coefficients),
+                                         alpha=3.0 / 300.0)[0].reshape(-1, 2)
+    else:
+        plain = cv2.projectPoints(pc, np.zeros(3), np.zeros(3), k, np.array(coefficients))[0].reshape(-1, 2)
+        want = plain + np.column_stack([3.0 * (plain[:, 1] - 640.0) / 310.0, np.zeros(50)])
+    assert np.abs(cal.project(pc) - want).max() < 1e-9
+    assert Calibration.from_json(cal.to_json()).model.intrinsics[4] == 3.0  # written back as read
+    np.testing.assert_allclose(cal.model.project(cal.model.rays(want)), want, atol=1e-6)  # its inverse too
+    # the Jacobians the pose refits use: against finite differences
+    xn = pc[:, :2]
+    _, d_uv, cols, vals = cal.model.pixel_of(xn, jacobian=True)
+    h = 1e-7
+    for j in range(2):
+        step = np.zeros(2)
+        step[j] = h
+        numeric = (cal.model.pixel_of(xn + step) - cal.model.pixel_of(xn - step)) / (2 * h)
+        assert np.abs(d_uv[:, :, j] - numeric).max() < 1e-4
+    params = cal.model.params()
+    for col in range(len(params)):
+        step = np.zeros(len(params))
+        step[col] = h
+        numeric = (cal.model.with_params(params + step).pixel_of(xn) - cal.model.with_params(params - step).pixel_of(xn)) / (2 * h)
+        analytic = np.where(cols == col, vals, 0.0).sum(axis=2)
+        assert np.abs(analytic - numeric).max() < 1e-3 * max(1.0, np.abs(numeric).max())
+    assert exact_name(cal) is None  # OpenCV's consumers have no skew: an export is fitted
 
 
 def test_a_corners_vnl_cell_that_is_no_number_is_named_in_words():

@@ -46,7 +46,7 @@ def beyond_note(fit) -> str:
     if fit.n_beyond:
         note += (f"; {fit.n_beyond} of the image's {fit.image.n + fit.n_beyond} samples lie past what this model can "
                  "represent (too far off axis), and are not in it")
-    if getattr(fit, "pole_radius", None) is not None:
+    if fit.pole_radius is not None:
         angle = math.degrees(math.atan(fit.pole_radius))
         note += (f"; outside the corners' region its rational denominator vanishes on the rays {angle:.1f}° off axis "
                  f"(r = {fit.pole_radius:.3f}): those project to infinity, and the image's pixels there have no ray "

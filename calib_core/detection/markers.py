@@ -80,15 +80,30 @@ def why_none(gray: np.ndarray, dictionary: str, border_bits: int = 1, first: int
     if len(detect(cv2.flip(gray, 1), dictionary, border_bits)[1]) >= 3:
         return (f"its {dictionary} markers read mirrored: the board is seen from behind (through the paper) or was "
                 "printed mirrored")
-    own = FAMILY.get(dictionary[:8], dictionary)
+    seen = seen_instead(gray, dictionary, markers)
+    if seen is not None:
+        other, ids = seen
+        return (f"no {dictionary} markers decoded, but {len(ids)} markers of {_smallest(other, ids)}: check the "
+                "board's dictionary")
+    return f"no {dictionary} markers decoded"
+
+
+def seen_instead(gray: np.ndarray, dictionary: str, markers: Markers | None = None) -> tuple[str, np.ndarray] | None:
+    """The first common dictionary other than ``dictionary``'s family (``OTHER_DICTIONARIES``) of
+    which the image shows three markers or more, and their ids; None if none."""
+    own = family(dictionary)
     for other in OTHER_DICTIONARIES:
         if other == own:
             continue
-        ids = detect(gray, other)[1]
+        ids = markers.all(other)[1] if markers is not None else detect(gray, other)[1]
         if len(ids) >= 3:
-            return (f"no {dictionary} markers decoded, but {len(ids)} markers of {_smallest(other, ids)}: check the "
-                    "board's dictionary")
-    return f"no {dictionary} markers decoded"
+            return other, ids
+    return None
+
+
+def family(dictionary: str) -> str:
+    """The largest dictionary of ``dictionary``'s family (DICT_6X6_250 → DICT_6X6_1000)."""
+    return FAMILY.get(dictionary[:8], dictionary)
 
 
 def _smallest(dictionary: str, ids: np.ndarray) -> str:

@@ -25,9 +25,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..target import Target
+from ..target import Target, TargetBoard
 from .detect_image import MIN_CORNERS, ImageResult, detect_gray, on_file
-from .markers import Markers
+from .markers import Markers, family, seen_instead
 
 MASK_MARGIN = 1.0   # a found board's region, grown by this many of its squares, is hidden from later searches
 
@@ -56,6 +56,18 @@ def detect_target_file(path: str | Path, target: Target, name: str | None = None
     return on_file(path, name, lambda gray, _circle: detect_target(gray, target))
 
 
+def _others_seen(gray: np.ndarray, board: TargetBoard, target: Target, markers: Markers) -> bool:
+    """Board ``board`` found no marker of its dictionary, and the markers the image shows
+    instead are of a dictionary another board of the target uses: that board is in view, this
+    one is not (the reason would have been "check the board's dictionary")."""
+    dictionary = str(board.spec.dictionary)
+    if markers.all(dictionary, 2 if board.spec.type == "aprilgrid" else 1)[1].size:
+        return False
+    seen = seen_instead(gray, dictionary, markers)
+    return seen is not None and any(
+        o is not board and o.spec.n_markers and family(str(o.spec.dictionary)) == family(seen[0]) for o in target.boards)
+
+
 def detect_target(gray: np.ndarray, target: Target) -> ImageResult:
     """Every board of ``target`` in a greyscale image (H, W) uint8. Never raises on an image."""
     h, w = gray.shape[:2]
@@ -69,10 +81,10 @@ def detect_target(gray: np.ndarray, target: Target) -> ImageResult:
         if res.status == "used" and res.ids is not None and res.points is not None:
             hits.append(BoardHit(k, b.name, res.ids, res.points, placed=b.fixed))
             _hide(hidden, res.points)
-        elif res.reason.startswith("board not found: no markers of this board"):  # others' markers seen
-            first = b.spec.first_marker
+        elif res.reason.startswith("board not found: no markers of this board") or _others_seen(gray, b, target, markers):
+            first = b.spec.first_marker  # the markers the image shows are other boards' of the target
             hits.append(BoardHit(k, b.name, reason=f"not in view (none of its markers, ids {first}-"
-                                                    f"{first + b.spec.n_markers - 1}, decoded)"))
+                                                    f"{first + b.spec.n_markers - 1} of {b.spec.dictionary}, decoded)"))
         else:
             hits.append(BoardHit(k, b.name, reason=res.reason))
     hits += _chessboards(hidden, target)

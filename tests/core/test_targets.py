@@ -153,6 +153,22 @@ def test_tags_of_another_dictionary_and_mirrored_boards_are_named_as_such():
     assert "ids 100-139" in other_ids.reason and "ids 0-39" in other_ids.reason
 
 
+def test_a_board_out_of_view_is_not_told_to_check_its_dictionary():
+    """Two ChArUco boards of different dictionaries, one out of the picture: the markers the image
+    shows are the other board's, and the reason for the missing one read "no DICT_6X6_250 markers
+    decoded, but 24 markers of DICT_4X4_50: check the board's dictionary"."""
+    board = {"type": "charuco", "squares_x": 5, "squares_y": 7, "square_size": 40.0, "marker_size": 30.0}
+    t = Target.from_json({"format": "freecal.target/1", "units": "mm", "boards": [
+        {"name": "near", "board": {**board, "dictionary": "DICT_4X4_50"}, "rvec": [0.0, 0.0, 0.0], "tvec": [0.0, 0.0, 0.0]},
+        {"name": "away", "board": {**board, "dictionary": "DICT_6X6_250"}, "rvec": [0.0, 0.0, 0.0],
+         "tvec": [5000.0, 0.0, 0.0]}]})
+    pose = np.array([0.0, 0.0, 0.0, -100.0, -140.0, 450.0])  # the near board face-on, the other far aside
+    res = detect_target(render_target.render_target("radial", t, pose, np.random.default_rng(0)), t)
+    reasons = {h.label: h.reason for h in res.boards}
+    assert res.status == "used" and reasons["near"] == ""
+    assert reasons["away"].startswith("not in view") and "dictionary" not in reasons["away"].replace("of DICT", "")
+
+
 def test_a_charuco_corner_beside_one_unreadable_marker_is_found():
     """A marker covered (a finger, glare, too small to decode) leaves each of the four corners
     round it one decoded marker: each is still found, where the truth has it."""

@@ -17,6 +17,8 @@ import threading
 import cv2
 import numpy as np
 
+from ..board import APRILGRID_DICTIONARY
+
 # Dictionaries looked for when a board's own are absent: the common families, largest of each.
 OTHER_DICTIONARIES = ("DICT_4X4_1000", "DICT_5X5_1000", "DICT_6X6_1000", "DICT_7X7_1000", "DICT_ARUCO_ORIGINAL",
                       "DICT_APRILTAG_36h11", "DICT_APRILTAG_25h9", "DICT_APRILTAG_16h5")
@@ -80,6 +82,17 @@ def why_none(gray: np.ndarray, dictionary: str, border_bits: int = 1, first: int
     if len(detect(cv2.flip(gray, 1), dictionary, border_bits)[1]) >= 3:
         return (f"its {dictionary} markers read mirrored: the board is seen from behind (through the paper) or was "
                 "printed mirrored")
+    def ids_of(d: str, bits: int) -> np.ndarray:
+        return markers.all(d, bits)[1] if markers is not None else detect(gray, d, bits)[1]
+
+    other_bits = 3 - border_bits  # ChArUco's markers have a one-bit black border, Kalibr's AprilGrid tags two
+    if len(ids_of(dictionary, other_bits)) >= 3:
+        return (f"its {dictionary} markers have a {'two' if other_bits == 2 else 'one'}-bit black border: "
+                + ("an AprilGrid's tags (give an aprilgrid board spec)" if other_bits == 2 else
+                   "a ChArUco board's markers (give a charuco board spec)"))
+    if border_bits == 1 and len(tags := ids_of(APRILGRID_DICTIONARY, 2)) >= 3:
+        return (f"no {dictionary} markers decoded, but {len(tags)} tags of an AprilGrid ({APRILGRID_DICTIONARY}, with "
+                "a two-bit border): check the board's type")
     seen = seen_instead(gray, dictionary, markers)
     if seen is not None:
         other, ids = seen

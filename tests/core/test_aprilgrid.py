@@ -94,6 +94,22 @@ def test_a_steep_aprilgrid_keeps_the_corners_of_the_tags_opencv_reads(tilt_deg):
     assert e.max() < 0.6
 
 
+def test_an_aprilgrid_taken_for_a_charuco_board_and_back_is_named_as_such():
+    """Kalibr's tags have a two-bit border, ChArUco's markers one: the reasons said only "no DICT_5X5_100
+    markers decoded" and "no DICT_APRILTAG_36h11 markers decoded" (the image holding 36 and 24 of them)."""
+    r = Rotation.from_rotvec([np.pi, 0, 0])
+    grid = BoardSpec.parse("aprilgrid:6x6:40mm:0.3")
+    t = np.array([0, 0, 260.0]) - r.apply(grid.object_points(np.arange(grid.n_corners)).mean(axis=0))
+    img = render_target.render_boards("radial", [(grid, np.concatenate([r.as_rotvec(), t]))], np.random.default_rng(0))
+    res = detect_gray(img, BoardSpec.parse("charuco:5x7:40mm:30mm:DICT_5X5_100"))
+    assert res.status == "rejected" and "tags of an AprilGrid (DICT_APRILTAG_36h11" in res.reason and "board's type" in res.reason
+    charuco = BoardSpec.parse("charuco:6x8:40mm:30mm:DICT_APRILTAG_36h11")
+    t = np.array([0, 0, 330.0]) - charuco.object_points(np.arange(charuco.n_corners)).mean(axis=0)
+    img = render_target.render_boards("radial", [(charuco, np.concatenate([np.zeros(3), t]))], np.random.default_rng(0))
+    res = detect_gray(img, BoardSpec.parse("aprilgrid:6x6:40mm:0.3"))
+    assert res.status == "rejected" and "one-bit black border: a ChArUco board's markers" in res.reason
+
+
 def test_a_grid_of_another_width_is_named_as_such():
     """Tags read on a grid of another width sit where that grid has other ids: no corner is
     named (it would be a wrong object point), and the reason says what to check. A grid with

@@ -44,6 +44,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     views, warnings = [], []
     image_size: tuple[int, int] | None = None
     circles: list = []  # each photo read: its image circle, or None
+    undecodable = 0  # photos that could not be read as images: no board's size is to blame for them
     run.progress("detect", 0.0, 0.0, DETECTED)
     for start in range(0, len(names), size):
         batch = names[start:start + size]
@@ -54,6 +55,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
 
         det = detect_images([folder / n for n in batch], board, progress=progress)
         circles += [r.image_circle for r in det.reports if r.width is not None]
+        undecodable += sum(r.width is None for r in det.reports)
         reports = [_report(r) for r in det.reports]
         if det.observations is not None:
             if image_size is None:
@@ -88,7 +90,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
     sets.record_detection(ctx.db, set_id, None if image_size is None else list(image_size), coverage,
                           warnings, len(views))
     if not views or image_size is None:
-        raise DataError(none_found(board, len(names)) + (f"; {suggestion['message']}" if suggestion else ""))
+        raise DataError(none_found(board, len(names), undecodable) + (f"; {suggestion['message']}" if suggestion else ""))
     obs = Observations(image_size, views, board.to_json(),
                        {} if circle is None else {"image_circle": circle_json(circle)})
     storage.write_json(ctx.storage.observations_path(set_id), obs.to_json())

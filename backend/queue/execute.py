@@ -51,7 +51,8 @@ def _waits_for_detection(ctx: Context, job: dict) -> bool:
         return True
     why = f" ({detection['error']})" if detection["error"] else ""
     jobs.fail_queued(ctx.db, job["id"], f"the set's corner detection {detection['state']}{why}, so there was "
-                                        "nothing to calibrate: fix the board's size or the photos, and run again")
+                                        "nothing to calibrate: see why, fix it (the board's spec, the photos), and "
+                                        "run again")
     return True
 
 

@@ -39,6 +39,22 @@ def test_rendered_photos_show_their_board_and_sizes_given_wrong_are_corrected(re
     assert suggest_size(small, [], 4, rendered).rows == 6   # or nothing found at all
 
 
+def test_a_photo_of_many_pixels_is_probed_on_a_reduced_copy_and_still_shows_its_board(tmp_path):
+    """A 13 MP photo is probed as detection reads it, on a copy of about 3 MP: the lattice's size is the
+    same (and a blank 49 MP photo, probed at full size, held a service worker for minutes)."""
+    import cv2
+
+    sq, margin = 380, 300
+    h, w = 7 * sq + 2 * margin, 10 * sq + 2 * margin
+    y, x = np.mgrid[0:h, 0:w]
+    i, j = (x - margin) // sq, (y - margin) // sq
+    inside = (x >= margin) & (y >= margin) & (i <= 9) & (j <= 6)
+    img = np.where(inside & ((i + j) % 2 == 0), 30, 225).astype(np.uint8)
+    assert h * w > 12e6
+    cv2.imwrite(str(tmp_path / "big.png"), cv2.GaussianBlur(img, (0, 0), 2.0))
+    assert probe_file(tmp_path / "big.png")[:2] == (9, 6)
+
+
 def test_too_few_or_mixed_grids_suggest_nothing():
     board = BoardSpec.parse("chessboard:16x10:26mm")
     assert suggest_size(board, views_on(board, 1, 15, 9), 1) is None          # one view tells nothing

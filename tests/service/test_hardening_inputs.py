@@ -355,6 +355,18 @@ def test_board_that_does_not_match_the_photos(service):
     refused(service, service.client.post("/api/jobs", json={"set_id": set_id}), 409, "failed", "board")
 
 
+def test_a_set_of_photos_that_cannot_be_read_says_so_not_check_the_board(service):
+    """A truncated JPEG (the upload sniffs its header; decoding fails later): the set's reason read
+    "the chessboard of 9 × 6 inner corners was found in none of the 1 photos: check the board's size"."""
+    whole = encode(board_image(0), ".jpg")
+    r = post_files(service, [("files", ("cut.jpg", whole[: len(whole) // 3]))], "chessboard:9x6:25mm")
+    assert r.status_code == 201, r.text
+    set_id = r.json()["id"]
+    s = wait_for(lambda: (s := service.client.get(f"/api/sets/{set_id}").json())["state"] in ("ready", "failed") and s,
+                 60, "detection of an unreadable photo", service.logs())
+    assert s["state"] == "failed" and "could not be read as images" in s["error"] and "board's size" not in s["error"]
+
+
 ODD_NAMES = ["../../escape.png", "/etc/absolute.png", "C:\\Windows\\win.png", "spaces & ümlauts (1).png",
              ".hidden.png", "x" * 300 + ".png", "%2e%2e%2fenc.png", "semi;colon'quote\".png"]
 

@@ -17,6 +17,9 @@ export function renderJobs(jobs, selectedId, onSelect, sets = []) {
   if (!jobs.length) ul.append(el("li", { class: "muted" }, el("span", {}, "\u00a0 no calibration jobs yet")));
 }
 
+/** No calibration shown (the one shown was deleted). */
+export function hideJob() { document.getElementById("job-detail").hidden = true; }
+
 export function renderJob(job, onCancel, sets = []) {
   document.getElementById("job-detail").hidden = false;
   const set = sets.find((x) => x.id === job.set_id);

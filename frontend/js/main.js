@@ -1,18 +1,18 @@
 // The page's wiring: upload → set detection → job → results (and rigs of several sets), with a poll loop that
 // keeps the lists, the progress bars and the selected items current.
-import { api } from "./api.js";
+import { api, ApiError } from "./api.js";
 import { initBoard } from "./board.js";
 import { initCapture } from "./capture.js";
 import { clearError, showError } from "./errors.js";
 import { initHelp } from "./help.js";
-import { renderJob, renderJobs } from "./jobs.js";
+import { hideJob, renderJob, renderJobs } from "./jobs.js";
 import { hideResults, renderResults } from "./results.js";
 import { initRig, renderRig } from "./rig.js";
-import { renderSet, renderSets } from "./sets.js";
+import { hideSet, renderSet, renderSets } from "./sets.js";
 import { renderSetNotes } from "./setnotes.js";
 import { initMethods } from "./settings.js";
 import { initUpload } from "./upload.js";
-import { NO_FILES } from "./words.js";
+import { JOB_GONE, NO_FILES, SET_GONE } from "./words.js";
 
 const POLL_MS = 1000;
 const state = { setId: null, jobId: null, shownJob: null, sets: [] };
@@ -58,13 +58,29 @@ async function refresh() {
     renderRig(sets.sets, rigs.jobs);
     renderJobs(jobs.jobs, state.jobId, selectJob, sets.sets);
     let set = null;
+    if (state.setId && !sets.sets.some((s) => s.id === state.setId)) {
+      // deleted elsewhere: asking for it every second would only repeat the API's 404
+      state.setId = null;
+      hideSet();
+      showError(new Error(SET_GONE));
+    }
     if (state.setId) {
       set = await api.set(state.setId);
       renderSet(set);
       renderSetNotes(set, jobs.jobs);
     }
     if (state.jobId) {
-      const job = await api.job(state.jobId);
+      let job;
+      try { job = await api.job(state.jobId); }
+      catch (e) {
+        if (!(e instanceof ApiError && e.status === 404)) throw e;
+        state.jobId = null;
+        state.shownJob = null;
+        hideJob();
+        hideResults();
+        showError(new Error(JOB_GONE));
+        return;
+      }
       // fetched after the list: where it moved on since, the list shows it as it is now (never "running" beside results)
       const listed = jobs.jobs.findIndex((j) => j.id === job.id);
       if (listed >= 0 && jobs.jobs[listed].state !== job.state) {

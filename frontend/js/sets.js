@@ -18,6 +18,12 @@ export function renderSets(sets, selectedId, onSelect) {
 
 let shown = "";
 
+/** No set shown (the one shown was deleted). */
+export function hideSet() {
+  shown = "";
+  document.getElementById("set-detail").hidden = true;
+}
+
 export function renderSet(set) {
   // the poll loop calls this every second: redraw only what changed (no thumbnail flicker)
   const sig = JSON.stringify([set.id, set.state, set.progress, set.images, set.warnings, set.error]);

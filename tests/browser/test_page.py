@@ -264,3 +264,26 @@ def test_browser_with_a_token_asks_once_then_sends_it_everywhere(browser, guarde
     assert other.locator("#token-form").count() == 0
     other.close()
     page.close()
+
+
+def test_a_set_deleted_elsewhere_leaves_the_page_saying_so(browser, service):
+    """Deleted through the API (another tab, a script) while the page showed it: the page asked for it every
+    second and repeated the API's "no set with id …" in red, its thumbnails and job card frozen."""
+    from calib_core import synth
+
+    from .conftest import open_page
+
+    doc = json.dumps(synth.generate("radial").train.to_json())
+    created = service.client.post("/api/sets", files={"files": ("gone.json", doc, "application/json")})
+    assert created.status_code == 201, created.text
+    set_id = created.json()["id"]
+    page, errors = open_page(browser, service)
+    page.click("button[aria-label='set gone.json']")
+    page.wait_for_selector("#set-detail:not([hidden])")
+    assert service.client.delete(f"/api/sets/{set_id}").status_code == 204
+    page.wait_for_selector("#set-detail[hidden]", state="attached", timeout=10_000)
+    said = page.text_content("#error")
+    assert "was deleted" in said and "no set with id" not in said
+    page.wait_for_timeout(2500)  # the poll loop goes on without asking for it again
+    assert page.text_content("#error") == said and not errors
+    page.close()

@@ -52,6 +52,7 @@ def run(ctx: Context, job: dict[str, Any], run: JobRun) -> dict[str, Any]:
         if result.verdict:
             # compare() keeps only figures: fit the winner on every view for its files
             best = calibrate(obs, result.verdict, progress=lambda s, f: run.progress(s, f, 0.85, 0.97))
+            best.settings["chosen_by"] = "compare"   # not asked for by name: what its camera block says
         run.progress("metrics", 0.0, 0.97, 1.0)
         names = artefacts.write_comparison(out, result, obs, best)
         return {"artefacts": names, "summary": artefacts.compare_summary(result)}

@@ -71,6 +71,8 @@ def how_chosen(cal: Calibration) -> str:
     if cal.method == "auto" and choice is not None and choice.summary:
         reason = choice.summary.split(": ", 1)[1] if ": " in choice.summary else choice.summary
         return f"chosen by method auto among {len(choice.candidates)} candidates: {reason}"
+    if cal.settings.get("chosen_by") == "compare":
+        return f"the comparison's verdict: the best of every method compared on these corners (method {cal.method})"
     return f"as asked (method {cal.method})"
 
 

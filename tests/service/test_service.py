@@ -234,5 +234,7 @@ def test_compare_job_gives_a_table_and_the_winner(service):
     assert table[0].startswith("method,rmse") and len(table) == 3
     cal = Calibration.from_json(service.client.get(f"/api/jobs/{job_id}/calibration.json").json())
     assert cal.method == job["summary"]["verdict"]
+    # the winner was not asked for by name (it said "as asked (method zhang)")
+    assert cal.diagnostics.camera["chosen"].startswith("the comparison's verdict: the best of every method compared")
     r = service.client.post("/api/jobs", json={"set_id": set_id, "method": "compare", "settings": {"splits": "x"}})
     assert r.status_code == 422

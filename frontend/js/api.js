@@ -71,6 +71,7 @@ export const api = {
   observations: (id) => request("GET", `/api/sets/${id}/observations.json`),
   createSet: (form) => request("POST", "/api/sets", form),
   detectAgain: (id, board) => request("POST", `/api/sets/${id}/detect`, { board }),
+  deleteSet: (id) => request("DELETE", `/api/sets/${id}`),
   jobs: () => request("GET", "/api/jobs"),
   rigJobs: () => request("GET", "/api/jobs?kind=rig"),
   job: (id) => request("GET", `/api/jobs/${id}`),

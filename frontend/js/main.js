@@ -12,7 +12,7 @@ import { hideSet, renderSet, renderSets } from "./sets.js";
 import { renderSetNotes } from "./setnotes.js";
 import { initMethods } from "./settings.js";
 import { initUpload } from "./upload.js";
-import { JOB_GONE, NO_FILES, SET_GONE } from "./words.js";
+import { deleteSetQuestion, JOB_GONE, NO_FILES, SET_GONE } from "./words.js";
 
 const POLL_MS = 1000;
 const state = { setId: null, jobId: null, shownJob: null, sets: [] };
@@ -45,6 +45,25 @@ function selectJob(id) {
 
 async function cancel(id) {
   try { await api.cancelJob(id); refresh(); } catch (e) { showError(e); }
+}
+
+// a set the user no longer needs (a wrong upload; the server's FREECAL_MAX_SETS asks for room)
+async function deleteShownSet() {
+  const set = state.sets.find((s) => s.id === state.setId);
+  if (!set || !window.confirm(deleteSetQuestion(set.name))) return;
+  clearError();
+  try {
+    await api.deleteSet(set.id);   // a running job first answers 409, in words: its cancellation was asked for
+    if (state.jobSetId === set.id) {   // its calibration shown: gone with it
+      state.jobId = null;
+      state.shownJob = null;
+      hideJob();
+      hideResults();
+    }
+    state.setId = null;
+    hideSet();
+    refresh();
+  } catch (e) { showError(e); }
 }
 
 let busy = false;
@@ -87,6 +106,7 @@ async function refresh() {
         jobs.jobs[listed] = job;
         renderJobs(jobs.jobs, state.jobId, selectJob, sets.sets);
       }
+      state.jobSetId = job.set_id;
       renderJob(job, cancel, state.sets);
       if (job.state === "done" && state.shownJob !== job.id) {
         state.shownJob = job.id;
@@ -117,6 +137,7 @@ async function init() {
   initHelp();
   initUpload(submit);
   initCapture(submit);
+  document.getElementById("set-delete").addEventListener("click", deleteShownSet);
   try {
     const methods = await api.methods();
     initMethods(methods);

@@ -2,6 +2,8 @@
 // the page speaks to people. Messages that name a request field are said again in page words.
 export const NO_FILES = "Choose the photos first: drop images, a .zip or an observations .json on the box above " +
   "(no files chosen).";
+export const deleteSetQuestion = (name) => `Delete the set "${name}", its photos and its calibrations from the ` +
+  "server? This cannot be undone.";
 // what was shown is gone: deleted in another tab or through the API while this page showed it
 export const SET_GONE = "The set shown here was deleted (in another tab, or through the API): pick another set, " +
   "or upload photos.";

@@ -287,3 +287,28 @@ def test_a_set_deleted_elsewhere_leaves_the_page_saying_so(browser, service):
     page.wait_for_timeout(2500)  # the poll loop goes on without asking for it again
     assert page.text_content("#error") == said and not errors
     page.close()
+
+
+def test_a_set_is_deleted_from_the_page(browser, service):
+    """The page had no way to delete a set: a wrong upload stayed, and the server's 507 at
+    FREECAL_MAX_SETS ('delete sets you no longer need ... from the page') asked for what it could not do."""
+    from calib_core import synth
+
+    from .conftest import open_page
+
+    doc = json.dumps(synth.generate("radial").train.to_json())
+    created = service.client.post("/api/sets", files={"files": ("unwanted.json", doc, "application/json")})
+    assert created.status_code == 201, created.text
+    set_id = created.json()["id"]
+    page, errors = open_page(browser, service)
+    page.click("button[aria-label='set unwanted.json']")
+    page.wait_for_selector("#set-detail:not([hidden])")
+    asked: list[str] = []
+    page.on("dialog", lambda d: (asked.append(d.message), d.accept()))
+    page.click("#set-delete")
+    page.wait_for_selector("#set-detail[hidden]", state="attached", timeout=10_000)
+    wait_for(lambda: service.client.get(f"/api/sets/{set_id}").status_code == 404, 10, "the set deleted")
+    assert asked and "unwanted.json" in asked[0] and "cannot be undone" in asked[0]
+    wait_until(page, "!document.querySelector(\"button[aria-label='set unwanted.json']\")", 10_000)
+    assert page.is_hidden("#error") and not errors
+    page.close()

@@ -35,13 +35,34 @@ async function submit({ form, method, settings }) {
 // curation (re-run without some views) and the board-size suggestion create jobs too: show them
 document.addEventListener("freecal:job-created", (e) => { state.scrollTo = e.detail.id; selectJob(e.detail.id); });
 
-function selectSet(id) { state.setId = id; refresh(); }
+function selectSet(id) { state.setId = id; remember(); refresh(); }
 function selectJob(id) {
   state.jobId = id;
   state.shownJob = null;
   hideResults();
+  remember();
   refresh();
 }
+
+// What is shown lives in the address (#set=…&job=…): a reload shows it again, and Back goes to what was
+// shown before instead of leaving the page.
+function remember(replace = false) {
+  const hash = new URLSearchParams();
+  if (state.setId) hash.set("set", state.setId);
+  if (state.jobId) hash.set("job", state.jobId);
+  const next = hash.toString() ? `#${hash}` : location.pathname + location.search;
+  if (next === location.hash || (!hash.toString() && !location.hash)) return;
+  if (replace) history.replaceState(null, "", next); else history.pushState(null, "", next);
+}
+
+function recall() {
+  const hash = new URLSearchParams(location.hash.slice(1));
+  state.setId = hash.get("set");
+  state.jobId = hash.get("job");
+  state.shownJob = null;
+  hideResults();
+}
+window.addEventListener("popstate", () => { recall(); refresh(); });
 
 async function cancel(id) {
   try { await api.cancelJob(id); refresh(); } catch (e) { showError(e); }
@@ -62,6 +83,7 @@ async function deleteShownSet() {
     }
     state.setId = null;
     hideSet();
+    remember(true);
     refresh();
   } catch (e) { showError(e); }
 }
@@ -81,13 +103,16 @@ async function refresh() {
       // deleted elsewhere: asking for it every second would only repeat the API's 404
       state.setId = null;
       hideSet();
+      remember(true);
       showError(new Error(SET_GONE));
     }
+    if (!state.setId) hideSet();   // Back to a page that showed none
     if (state.setId) {
       set = await api.set(state.setId);
       renderSet(set);
       renderSetNotes(set, jobs.jobs);
     }
+    if (!state.jobId) hideJob();
     if (state.jobId) {
       let job;
       try { job = await api.job(state.jobId); }
@@ -97,6 +122,7 @@ async function refresh() {
         state.shownJob = null;
         hideJob();
         hideResults();
+        remember(true);
         showError(new Error(JOB_GONE));
         return;
       }
@@ -110,7 +136,12 @@ async function refresh() {
       renderJob(job, cancel, state.sets);
       if (job.state === "done" && state.shownJob !== job.id) {
         state.shownJob = job.id;
-        if (job.set_id && job.set_id !== state.setId) { state.setId = job.set_id; set = await api.set(job.set_id); renderSet(set); }
+        if (job.set_id && job.set_id !== state.setId) {
+          state.setId = job.set_id;
+          remember(true);
+          set = await api.set(job.set_id);
+          renderSet(set);
+        }
         // shown at once, scrolled to while its figures still come in
         const drawn = renderResults(job, set);
         if (state.scrollTo === job.id) document.getElementById("results").scrollIntoView({ behavior: "smooth" });
@@ -143,6 +174,7 @@ async function init() {
     initMethods(methods);
     initRig(methods, refresh);
   } catch (e) { showError(e); }
+  recall();   // a reload, or a link to a set or calibration
   await refresh();
   setInterval(refresh, POLL_MS);
   health();

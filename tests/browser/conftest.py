@@ -50,6 +50,11 @@ def screenshots(name: str):
     return shots
 
 
+def origin(page) -> str:
+    """The page's server, for API requests beside it (its address also holds what it shows: #set=…&job=…)."""
+    return page.url.split("#")[0].rstrip("/")
+
+
 def wait_until(page, expression: str, timeout: float) -> None:
     """Poll a JS expression until true. Not page.wait_for_function: Playwright compiles its predicate
     with eval inside the page, which the page's Content-Security-Policy (rightly) forbids."""

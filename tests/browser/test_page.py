@@ -312,3 +312,28 @@ def test_a_set_is_deleted_from_the_page(browser, service):
     wait_until(page, "!document.querySelector(\"button[aria-label='set unwanted.json']\")", 10_000)
     assert page.is_hidden("#error") and not errors
     page.close()
+
+
+def test_a_reload_and_the_back_button_keep_what_was_shown(browser, service):
+    """A reload showed no set and no calibration, and Back left the page (nothing was in its address)."""
+    from calib_core import synth
+
+    from .conftest import open_page
+
+    doc = json.dumps(synth.generate("radial").train.to_json())
+    for name in ("first.json", "second.json"):
+        r = service.client.post("/api/sets", files={"files": (name, doc, "application/json")})
+        assert r.status_code == 201, r.text
+    page, errors = open_page(browser, service)
+    title = "#set-detail-title"
+    page.click("button[aria-label='set first.json']")
+    wait_until(page, "document.querySelector('#set-detail-title').textContent.includes('first.json')", 10_000)
+    page.click("button[aria-label='set second.json']")
+    wait_until(page, "document.querySelector('#set-detail-title').textContent.includes('second.json')", 10_000)
+    page.reload()
+    page.wait_for_selector("#set-detail:not([hidden])", timeout=10_000)
+    assert "second.json" in page.text_content(title)
+    page.go_back()
+    wait_until(page, "document.querySelector('#set-detail-title').textContent.includes('first.json')", 10_000)
+    assert page.url.startswith(f"http://127.0.0.1:{service.port}/") and not errors
+    page.close()

@@ -16,7 +16,7 @@ import time
 import pytest
 
 from ..conftest import ROOT, shared_data
-from .conftest import hover_figure, open_page, page_service, screenshots, wait_until
+from .conftest import hover_figure, open_page, origin, page_service, screenshots, wait_until
 from .test_page import fill_settings
 
 pytestmark = pytest.mark.slow
@@ -45,7 +45,7 @@ def results(page, timeout: float) -> dict:
     """Wait for the camera card; the calibration JSON the page links to, as a download would give it."""
     page.wait_for_selector("#camera-params", timeout=timeout)
     href = page.get_attribute("#downloads a[data-file='calibration.json']", "href")
-    return json.loads(page.request.get(page.url.rstrip("/") + href).text())
+    return json.loads(page.request.get(origin(page) + href).text())
 
 
 def shown_number(text: str) -> float:
@@ -108,7 +108,7 @@ def test_gopro_camera_card_distortion_as_angles_words_and_progress(browser, serv
     page, errors = open_page(browser, service, viewport=DESKTOP, accept_downloads=True)
     # a favicon, served
     icon = page.get_attribute("link[rel=icon]", "href")
-    assert page.request.get(page.url + icon).headers["content-type"].startswith("image/svg")
+    assert page.request.get(origin(page) + "/" + icon.lstrip("/")).headers["content-type"].startswith("image/svg")
     # page words: no schema-speak for an upload without photos
     page.click("#submit")
     page.wait_for_selector("#error:not([hidden])")
@@ -214,7 +214,7 @@ def test_rendered_set_and_opencv_stereo_field_table_and_verdict_advice(browser, 
     page.screenshot(path=shots / "07-rendered-results.png", full_page=True)
 
     # OpenCV's left camera, 640 × 480, corners in the middle only: the verdict says where to add views
-    page.goto(page.url)
+    page.goto(origin(page) + "/")   # a fresh page, not the one its address shows
     page.wait_for_selector("#method option[value=auto]", state="attached")
     upload(page, sorted(shared_data("opencv-stereo-9x6").glob("left*.jpg")), (9, 6, 25), "zhang")
     wait_until(page, "document.querySelector('#results-title').textContent.includes('5 coefficients')",

@@ -16,7 +16,7 @@ import cv2
 import pytest
 
 from ..conftest import shared_data
-from .conftest import open_page, page_service, screenshots, wait_until
+from .conftest import open_page, origin, page_service, screenshots, wait_until
 
 pytestmark = pytest.mark.slow
 
@@ -51,9 +51,9 @@ def submit(page, files, board: tuple[int, int, float], method: str) -> None:
 def shown_set(page) -> dict:
     """The set the page shows, as the API gives it."""
     name = page.get_attribute("#images li[data-name]", "data-name")
-    sets = page.request.get(page.url.rstrip("/") + "/api/sets").json()
+    sets = page.request.get(origin(page) + "/api/sets").json()
     for s in sets["sets"]:
-        full = page.request.get(page.url.rstrip("/") + f"/api/sets/{s['id']}").json()
+        full = page.request.get(origin(page) + f"/api/sets/{s['id']}").json()
         if any(im["name"] == name for im in full["images"]):
             return full
     raise AssertionError(f"no set holds {name}")

@@ -114,7 +114,7 @@ def test_a_rig_job_writes_what_freecal_rig_writes_and_its_exports_read_back(serv
     assert set(chain) == {"cam0", "cam1"} and chain["cam1"]["rostopic"] == "/right/image_raw"
     assert chain["cam0"]["cam_overlaps"] == [1] and chain["cam0"]["resolution"] == [1280, 960]
     t = np.array(chain["cam1"]["T_cn_cnm1"])
-    assert np.allclose(t[:3, 3], right.tvec, atol=1e-6) and np.allclose(t[3], [0, 0, 0, 1])
+    assert np.allclose(t[:3, 3], 1e-3 * right.tvec, atol=1e-9) and np.allclose(t[3], [0, 0, 0, 1])  # mm → Kalibr's metres
     assert np.allclose(cv2.Rodrigues(t[:3, :3])[0].ravel(), right.rvec, atol=1e-6)
 
     # a rig job's other files do not exist, and saying so names what does

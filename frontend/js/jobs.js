@@ -36,8 +36,20 @@ export function renderJob(job, onCancel, sets = []) {
     ? " · waiting for the set's corner detection to end (it starts by itself)" : " · waiting for a worker";
   else if (job.state === "done") text += ` · ${seconds(t.run_seconds)}`;
   if (job.error) text += ` · ${job.error}`;
+  const active = ["queued", "running"].includes(job.state);
+  if (!active) cancelling.delete(job.id);
+  // a cancel takes a second or two to reach a running job: say at once that it was asked for
+  if (cancelling.has(job.id)) text = `cancelling (asked for) · ${text}`;
   document.getElementById("job-progress-label").textContent = text;
   const cancel = document.getElementById("job-cancel");
-  cancel.hidden = !["queued", "running"].includes(job.state);
-  cancel.onclick = () => onCancel(job.id);
+  cancel.hidden = !active;
+  cancel.disabled = cancelling.has(job.id);
+  cancel.onclick = () => {
+    cancelling.add(job.id);
+    cancel.disabled = true;
+    document.getElementById("job-progress-label").textContent = `cancelling (asked for) · ${text}`;
+    onCancel(job.id);
+  };
 }
+
+const cancelling = new Set();   // jobs whose cancel was asked for here and that have not ended yet

@@ -337,3 +337,24 @@ def test_a_reload_and_the_back_button_keep_what_was_shown(browser, service):
     wait_until(page, "document.querySelector('#set-detail-title').textContent.includes('first.json')", 10_000)
     assert page.url.startswith(f"http://127.0.0.1:{service.port}/") and not errors
     page.close()
+
+
+def test_cancel_says_at_once_that_it_was_asked_for(browser, service):
+    """A cancel takes a second or two to reach a running job: the label went on saying "running … about 2 min
+    left" and the button stayed live until then."""
+    from calib_core import synth
+
+    from .conftest import open_page
+
+    page, errors = open_page(browser, service)
+    doc = json.dumps(synth.generate("asymmetric").train.to_json()).encode()
+    page.set_input_files("#files", [{"name": "slow.json", "mimeType": "application/json", "buffer": doc}])
+    page.select_option("#method", "compare")   # every method, several splits: long enough to cancel
+    page.click("#submit")
+    wait_until(page, "document.querySelector('#job-progress-label').textContent.startsWith('running')", 60_000)
+    page.click("#job-cancel")
+    assert page.text_content("#job-progress-label").startswith("cancelling (asked for)")
+    assert page.is_disabled("#job-cancel")
+    wait_until(page, "document.querySelector('#job-progress-label').textContent.startsWith('cancelled')", 60_000)
+    assert page.is_hidden("#job-cancel") and not errors
+    page.close()

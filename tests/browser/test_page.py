@@ -18,11 +18,11 @@ from pathlib import Path
 
 import pytest
 
-from calib_core import Calibration
+from calib_core import Calibration, synth
 
 from ..conftest import shared_data
 from ..service.harness import FAST, Service, wait_for
-from .conftest import hover_figure, page_service, screenshots, wait_until
+from .conftest import hover_figure, open_page, page_service, screenshots, wait_until
 
 pytestmark = pytest.mark.slow
 
@@ -266,20 +266,27 @@ def test_browser_with_a_token_asks_once_then_sends_it_everywhere(browser, guarde
     page.close()
 
 
+def corners_set(service, name: str) -> str:
+    """A set of the radial lens's corners, uploaded as ``name`` through the API; its id."""
+    doc = json.dumps(synth.generate("radial").train.to_json())
+    created = service.client.post("/api/sets", files={"files": (name, doc, "application/json")})
+    assert created.status_code == 201, created.text
+    return created.json()["id"]
+
+
+def showing(browser, service, name: str) -> tuple:
+    """The page, showing the set ``name`` (picked in its list), and its script errors."""
+    page, errors = open_page(browser, service)
+    page.click(f"button[aria-label='set {name}']")
+    page.wait_for_selector("#set-detail:not([hidden])")
+    return page, errors
+
+
 def test_a_set_deleted_elsewhere_leaves_the_page_saying_so(browser, service):
     """Deleted through the API (another tab, a script) while the page showed it: the page asked for it every
     second and repeated the API's "no set with id …" in red, its thumbnails and job card frozen."""
-    from calib_core import synth
-
-    from .conftest import open_page
-
-    doc = json.dumps(synth.generate("radial").train.to_json())
-    created = service.client.post("/api/sets", files={"files": ("gone.json", doc, "application/json")})
-    assert created.status_code == 201, created.text
-    set_id = created.json()["id"]
-    page, errors = open_page(browser, service)
-    page.click("button[aria-label='set gone.json']")
-    page.wait_for_selector("#set-detail:not([hidden])")
+    set_id = corners_set(service, "gone.json")
+    page, errors = showing(browser, service, "gone.json")
     assert service.client.delete(f"/api/sets/{set_id}").status_code == 204
     page.wait_for_selector("#set-detail[hidden]", state="attached", timeout=10_000)
     said = page.text_content("#error")
@@ -292,17 +299,8 @@ def test_a_set_deleted_elsewhere_leaves_the_page_saying_so(browser, service):
 def test_a_set_is_deleted_from_the_page(browser, service):
     """The page had no way to delete a set: a wrong upload stayed, and the server's 507 at
     FREECAL_MAX_SETS ('delete sets you no longer need ... from the page') asked for what it could not do."""
-    from calib_core import synth
-
-    from .conftest import open_page
-
-    doc = json.dumps(synth.generate("radial").train.to_json())
-    created = service.client.post("/api/sets", files={"files": ("unwanted.json", doc, "application/json")})
-    assert created.status_code == 201, created.text
-    set_id = created.json()["id"]
-    page, errors = open_page(browser, service)
-    page.click("button[aria-label='set unwanted.json']")
-    page.wait_for_selector("#set-detail:not([hidden])")
+    set_id = corners_set(service, "unwanted.json")
+    page, errors = showing(browser, service, "unwanted.json")
     asked: list[str] = []
     page.on("dialog", lambda d: (asked.append(d.message), d.accept()))
     page.click("#set-delete")
@@ -316,14 +314,8 @@ def test_a_set_is_deleted_from_the_page(browser, service):
 
 def test_a_reload_and_the_back_button_keep_what_was_shown(browser, service):
     """A reload showed no set and no calibration, and Back left the page (nothing was in its address)."""
-    from calib_core import synth
-
-    from .conftest import open_page
-
-    doc = json.dumps(synth.generate("radial").train.to_json())
     for name in ("first.json", "second.json"):
-        r = service.client.post("/api/sets", files={"files": (name, doc, "application/json")})
-        assert r.status_code == 201, r.text
+        corners_set(service, name)
     page, errors = open_page(browser, service)
     title = "#set-detail-title"
     page.click("button[aria-label='set first.json']")
@@ -342,10 +334,6 @@ def test_a_reload_and_the_back_button_keep_what_was_shown(browser, service):
 def test_cancel_says_at_once_that_it_was_asked_for(browser, service):
     """A cancel takes a second or two to reach a running job: the label went on saying "running … about 2 min
     left" and the button stayed live until then."""
-    from calib_core import synth
-
-    from .conftest import open_page
-
     page, errors = open_page(browser, service)
     doc = json.dumps(synth.generate("asymmetric").train.to_json()).encode()
     page.set_input_files("#files", [{"name": "slow.json", "mimeType": "application/json", "buffer": doc}])
